@@ -1,0 +1,778 @@
+"""The point kernel: shell energy density L (MODEL.md section 4), exact gradient
+and Hessian with respect to the 15 local variables v = (r_1, r_2, r_11, r_12, r_22).
+
+How it works
+------------
+Everything is written in the orthonormal reference frame (e1, e2, n) of the
+point: a tensor X is stored as X[i, J] = e_i . X E_J (i spatial, Cartesian;
+J = reference frame index).  With the auxiliary 3-vectors
+y1 (director), Y_a = y1_{,a} (its surface derivatives) and y2, every strain
+measure of the model is LINEAR in the block matrix
+
+    U = [r_1 r_2 r_11 r_12 r_22 | y1 Y_1 Y_2 | y2]    (3 x 9, "xi-space", 27 numbers)
+
+    F0      = grad r + y1 (x) n                     (F0 = [f_1 f_2 y1])
+    F1      = rho + y2 (x) n,  rho = (grad r) kappa + grad y1
+    F0_{,a} = (grad r)_{,a} + y1 (x) n_{,a} + Y_a (x) n
+
+and the law is evaluated at the elastic slots
+    A0 = F0 G0^{-1},  A1 = (F1 - F0 M1) G0^{-1},  A1a = (F0_{,a} - F0 Ma) G0^{-1}
+(M1 = G0^{-1} G1, Ma = G0^{-1} G0_{,a}); each slot is U times a constant 9x3
+coefficient matrix CA.
+
+With phi(Z) = Wbar(F0 + Z F1, Z) = det G(Z) W((F0 + Z F1) G(Z)^{-1}) the
+energy of MODEL.md section 4 is exactly (expand phi'' and eliminate y2)
+
+    L = h (1 + h^2 K/12) Wbar(F0) - h m.y1
+        + (h^3/24) min_y2 [ phi''(0) - 4 H phi'(0) + 2 P:(rho kappa) - 2 qbar.y2 ]
+
+which is what is evaluated (model levels drop terms, see LEVEL_*).  y1 solves
+the membrane condition c0 = P(F0) n - m = 0 (eq:mm; Newton), Y_a solves its
+surface derivative c_a = d c0/d theta^a = 0 (linear, MODEL.md section 4), y2
+the inner minimum (linear).  The reduced function L(v) = Ltil(v, w(v)) is
+differentiated with multipliers lam for (c0, c1, c2):
+
+    grad L = d/dv [Ltil + lam.c],         c_z^T lam = -dLtil/dz
+    hess L = P^T  Hess(Ltil + lam.c)  P,  P = d(v, y1, Y, y2)/dv
+
+so only the first to fourth derivatives of W at A0, contracted with the slot
+directions, are needed (kernels/material.py): one AA, five D3, three D4.
+The load term -h qbar.r is linear in r and left to the discretization.
+"""
+
+import numpy as np
+from numba import njit
+
+from .material import mat_d3, mat_d4, mat_prepare, new_state
+from .small import chol3, chol3_solve, cross, inv3
+
+LEVEL_MEMBRANE = 0
+LEVEL_BENDING = 1
+LEVEL_CONSISTENT = 2
+
+MODE_ENERGY = 0
+MODE_GRADIENT = 1
+MODE_HESSIAN = 2
+
+# status codes (the caller turns them into errors naming the element/point)
+OK = 0
+ERR_INVERTED = 1        # det A <= 0 during or after the y1 solve
+ERR_LAW = 2             # law returned non-finite values
+ERR_ELLIPTICITY = 3     # acoustic tensor B not positive definite
+ERR_Y1_NEWTON = 4       # y1 Newton did not converge
+ERR_REFERENCE = 5       # degenerate reference tangents
+ERR_GROWTH = 6          # det G0 <= 0
+ERR_CURRENT = 7         # degenerate current tangents (r_1 x r_2 = 0)
+
+STATUS_TEXT = {
+    OK: "ok",
+    ERR_INVERTED: "inverted material (det A <= 0)",
+    ERR_LAW: "the material law returned a non-finite value",
+    ERR_ELLIPTICITY: "loss of strong ellipticity (acoustic tensor not positive definite)",
+    ERR_Y1_NEWTON: "the director y1 (membrane condition, eq:mm) did not converge",
+    ERR_REFERENCE: "degenerate reference tangents (R_1 x R_2 = 0)",
+    ERR_GROWTH: "growth tensor with det G0 <= 0",
+    ERR_CURRENT: "degenerate current tangents (r_1 x r_2 = 0)",
+}
+
+NV = 15          # local variables v
+NXI = 27         # xi-space: 9 blocks of 3-vectors
+Y1_BLOCK = 5     # U[:, 5] = y1, U[:, 6:8] = Y_a, U[:, 8] = y2
+
+_Y1_MAXIT = 60
+
+
+def new_scratch():
+    """Work arrays of one point evaluation (allocate once per thread/element)."""
+    return (new_state(),            # 0 material state
+            np.zeros((3, 3)),       # 1 E: frame (columns e1, e2, n)
+            np.zeros((2, 3)),       # 2 Lam: Lam[a, J] = g^a . e_J (J < 2)
+            np.zeros((2, 2, 3)),    # 3 dgup[a, b] = d g^b / d theta^a (global)
+            np.zeros((2, 3)),       # 4 n_{,a} (global)
+            np.zeros((3, 3)),       # 5 kappa (local, zero 3rd row/col)
+            np.zeros((8, 3, 3)),    # 6 growth: G0L G1L Gi M1 N1 M_1 M_2 work
+            np.zeros((4, 9, 3)),    # 7 CA: slot coefficients A0, A1, A1_1, A1_2
+            np.zeros((3, 9)),       # 8 U
+            np.zeros((4, 9)),       # 9 slot values
+            np.zeros((12, 9)),      # 10 vectors: D0^k(3), D1_a^k(6), X, Xtot, work
+            np.zeros((6, 3)),       # 11 small vectors
+            np.zeros((3, 3, 3)),    # 12 B, chol(B), work
+            np.zeros((10, 9, 9)),   # 13 9x9: D3(A1), D3(D0^k)x3, H00, H01, H0a x2, work x2
+            np.zeros(NXI),          # 14 dLtil/dxi
+            np.zeros((9, NXI)),     # 15 dc/dxi
+            np.zeros((9, NV)),      # 16 Zv = d(y1, Y1, Y2)/dv
+            np.zeros((4, 9, NV)),   # 17 slot Jacobians dA/dv (y2 fixed)
+            np.zeros((9, NV)),      # 18 work
+            np.zeros((3, NV)),      # 19 d2 Ltil / dy2 dv
+            np.zeros(9))            # 20 lambda (c0, c1, c2)
+
+
+# ---------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------
+
+@njit(cache=True)
+def _reference_geometry(ref, E, Lam, dgup, na, kap):
+    """Frame, dual basis and curvature of the reference surface at the point.
+
+    Derivatives of g^a and n are exact directional derivatives of their
+    algebraic formulas in (R_1, R_2) along the given R_ab (DESIGN.md), so a
+    discrete reference is exactly stress free.  Returns (H, K, ok).
+    """
+    g = ref[0:6].reshape(2, 3)
+    Rs = np.empty((2, 2, 3))
+    for i in range(3):
+        Rs[0, 0, i] = ref[6 + i]
+        Rs[0, 1, i] = ref[9 + i]
+        Rs[1, 0, i] = ref[9 + i]
+        Rs[1, 1, i] = ref[12 + i]
+    M = np.empty((2, 2))
+    for a in range(2):
+        for b in range(2):
+            M[a, b] = g[a, 0] * g[b, 0] + g[a, 1] * g[b, 1] + g[a, 2] * g[b, 2]
+    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    if not det > 1e-28 * (M[0, 0] * M[1, 1]) or not np.isfinite(det):
+        return 0.0, 0.0, False
+    Mi = np.empty((2, 2))
+    Mi[0, 0] = M[1, 1] / det
+    Mi[1, 1] = M[0, 0] / det
+    Mi[0, 1] = -M[0, 1] / det
+    Mi[1, 0] = -M[1, 0] / det
+    nn = np.empty(3)
+    cross(g[0], g[1], nn)
+    s = 1.0 / np.sqrt(det)
+    gup = np.empty((2, 3))
+    for i in range(3):
+        E[i, 2] = nn[i] * s
+        for a in range(2):
+            gup[a, i] = Mi[a, 0] * g[0, i] + Mi[a, 1] * g[1, i]
+    l1 = np.sqrt(M[0, 0])
+    for i in range(3):
+        E[i, 0] = g[0, i] / l1
+    e2 = np.empty(3)
+    cross(E[:, 2].copy(), E[:, 0].copy(), e2)
+    for i in range(3):
+        E[i, 1] = e2[i]
+    # b_ab = n . R_ab ; n_{,a} = -b_ac g^c
+    b = np.empty((2, 2))
+    for a in range(2):
+        for c in range(2):
+            b[a, c] = E[0, 2] * Rs[a, c, 0] + E[1, 2] * Rs[a, c, 1] + E[2, 2] * Rs[a, c, 2]
+    for a in range(2):
+        for i in range(3):
+            na[a, i] = -(b[a, 0] * gup[0, i] + b[a, 1] * gup[1, i])
+    # d g^b / d theta^a = d(Mi)_a g + Mi R_{.a},  d(Mi)_a = -Mi dM_a Mi
+    for a in range(2):
+        dM = np.empty((2, 2))
+        for c in range(2):
+            for d in range(2):
+                dM[c, d] = 0.0
+                for i in range(3):
+                    dM[c, d] += Rs[c, a, i] * g[d, i] + g[c, i] * Rs[d, a, i]
+        dMi = np.zeros((2, 2))
+        for p in range(2):
+            for q in range(2):
+                for c in range(2):
+                    for d in range(2):
+                        dMi[p, q] -= Mi[p, c] * dM[c, d] * Mi[d, q]
+        for bb in range(2):
+            for i in range(3):
+                dgup[a, bb, i] = (dMi[bb, 0] * g[0, i] + dMi[bb, 1] * g[1, i]
+                                  + Mi[bb, 0] * Rs[0, a, i] + Mi[bb, 1] * Rs[1, a, i])
+    for a in range(2):
+        for J in range(2):
+            Lam[a, J] = gup[a, 0] * E[0, J] + gup[a, 1] * E[1, J] + gup[a, 2] * E[2, J]
+    # kappa_{IJ} = sum b_ac Lam[a, I] Lam[c, J]
+    for I in range(3):
+        for J in range(3):
+            kap[I, J] = 0.0
+    for I in range(2):
+        for J in range(2):
+            s = 0.0
+            for a in range(2):
+                for c in range(2):
+                    s += b[a, c] * Lam[a, I] * Lam[c, J]
+            kap[I, J] = s
+    H = 0.5 * (kap[0, 0] + kap[1, 1])
+    K = kap[0, 0] * kap[1, 1] - kap[0, 1] * kap[1, 0]
+    return H, K, True
+
+
+@njit(cache=True)
+def _to_local(X, E, out):
+    """out = E^T X E (a reference-reference tensor in the local frame)."""
+    for I in range(3):
+        for J in range(3):
+            s = 0.0
+            for p in range(3):
+                for q in range(3):
+                    s += E[p, I] * X[p, q] * E[q, J]
+            out[I, J] = s
+
+
+@njit(cache=True, inline="always")
+def _mm(a, b, out):
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@njit(cache=True)
+def _slot(U, C, out):
+    """out[3 i + J] = sum_p U[i, p] C[p, J]."""
+    for i in range(3):
+        for J in range(3):
+            s = 0.0
+            for p in range(9):
+                s += U[i, p] * C[p, J]
+            out[3 * i + J] = s
+
+
+@njit(cache=True)
+def _add_to_xi(G, C, coef, out):
+    """out[3 p + i] += coef sum_J G[3 i + J] C[p, J]  (slot gradient -> xi)."""
+    for p in range(9):
+        for i in range(3):
+            s = 0.0
+            for J in range(3):
+                s += G[3 * i + J] * C[p, J]
+            out[3 * p + i] += coef * s
+
+
+@njit(cache=True)
+def _matvec9(M, x, out):
+    for p in range(9):
+        s = 0.0
+        for q in range(9):
+            s += M[p, q] * x[q]
+        out[p] = s
+
+
+@njit(cache=True)
+def _dot9(a, b):
+    s = 0.0
+    for p in range(9):
+        s += a[p] * b[p]
+    return s
+
+
+@njit(cache=True)
+def _slot_jacobian(C, Zv, out):
+    """out[(i,J), q] = d slot / d v_q with y2 fixed (blocks 0..4 direct, 5..7 via Zv)."""
+    for r in range(9):
+        for q in range(NV):
+            out[r, q] = 0.0
+    for i in range(3):
+        for J in range(3):
+            r = 3 * i + J
+            for p in range(5):
+                out[r, 3 * p + i] += C[p, J]
+            for p in range(3):
+                c = C[Y1_BLOCK + p, J]
+                if c != 0.0:
+                    for q in range(NV):
+                        out[r, q] += c * Zv[3 * p + i, q]
+
+
+@njit(cache=True)
+def _add_JtHJ(Ja, H, Jb, both, work, out):
+    """out += Ja^T H Jb (+ its transpose if both)."""
+    for p in range(9):
+        for q in range(NV):
+            s = 0.0
+            for r in range(9):
+                s += H[p, r] * Jb[r, q]
+            work[p, q] = s
+    for a in range(NV):
+        for q in range(NV):
+            s = 0.0
+            for p in range(9):
+                s += Ja[p, a] * work[p, q]
+            out[a, q] += s
+            if both:
+                out[q, a] += s
+
+
+@njit(cache=True)
+def _right_map(M, Q, out):
+    """out[p, (k,L)] = sum_J M[p, (k,J)] Q[L, J]  (M composed with dA -> dA Q)."""
+    for p in range(9):
+        for k in range(3):
+            for L in range(3):
+                s = 0.0
+                for J in range(3):
+                    s += M[p, 3 * k + J] * Q[L, J]
+                out[p, 3 * k + L] = s
+
+
+# ---------------------------------------------------------------------------
+# the kernel
+# ---------------------------------------------------------------------------
+
+@njit(cache=True)
+def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
+                 qbar, m, dm, y1, y2, grad, hess, sc):
+    """Energy density L at one point, and grad (15) / hess (15x15) if asked.
+
+    mode: MODE_ENERGY | MODE_GRADIENT | MODE_HESSIAN; level: LEVEL_*.
+    kind, psi, params: the law (materials.Law.kind, .psi, .params).
+    v, ref: (r_1, r_2, r_11, r_12, r_22) current / reference, any coordinates.
+    G0, G1: growth G(Z) = G0 + Z G1 (global 3x3); dG0[a] = dG0/dtheta^a.
+    qbar, m, dm[a]: load resultants (eq:qm) and dm/dtheta^a.
+    y1: in: warm start (zeros: none); out: the director.  y2: out.
+    Returns (L, status); status != OK leaves L = nan.
+    """
+    ms = sc[0]
+    E, Lam, dgup, na, kap, gr = sc[1], sc[2], sc[3], sc[4], sc[5], sc[6]
+    CA, U, S, vec, sv, B3 = sc[7], sc[8], sc[9], sc[10], sc[11], sc[12]
+    M9 = sc[13]
+    G0L, G1L, Gi, M1, N1, wk = gr[0], gr[1], gr[2], gr[3], gr[4], gr[7]
+    B, LB = B3[0], B3[1]
+    nan = np.nan
+
+    H, K, ok = _reference_geometry(ref, E, Lam, dgup, na, kap)
+    if not ok:
+        return nan, ERR_REFERENCE
+    # growth in the local frame
+    _to_local(G0, E, G0L)
+    _to_local(G1, E, G1L)
+    g0 = inv3(G0L, Gi)
+    if not g0 > 0.0:
+        return nan, ERR_GROWTH
+    _mm(Gi, G1L, M1)
+    _mm(G1L, Gi, N1)
+    t1 = M1[0, 0] + M1[1, 1] + M1[2, 2]
+    t2 = 0.0
+    for i in range(3):
+        for j in range(3):
+            t2 -= M1[i, j] * M1[j, i]
+    t2 = 0.5 * (t1 * t1 + t2)
+    t1a = sv[5]
+    for a in range(2):
+        _to_local(dG0[a], E, wk)
+        _mm(Gi, wk, gr[5 + a])
+        t1a[a] = gr[5 + a][0, 0] + gr[5 + a][1, 1] + gr[5 + a][2, 2]
+
+    bend = level >= LEVEL_BENDING
+    cons = level == LEVEL_CONSISTENT
+    cB = h ** 3 * g0 / 24.0 if bend else 0.0
+    cK = 1.0 if cons else 0.0
+    cH = 1.0 if cons else 0.0
+    cW = h * g0 * (1.0 + cK * h * h * K / 12.0) + cB * (2.0 * t2 - 4.0 * cH * H * t1)
+
+    # ---- slot coefficient matrices (9 blocks x 3 local columns) ----------
+    CF = np.zeros((4, 9, 3))
+    for a in range(2):
+        for J in range(2):
+            CF[0, a, J] = Lam[a, J]
+            lk = Lam[a, 0] * kap[0, J] + Lam[a, 1] * kap[1, J]
+            CF[1, a, J] = lk
+            CF[1, 6 + a, J] = Lam[a, J]
+    CF[0, 5, 2] = 1.0
+    CF[1, 8, 2] = 1.0
+    for a in range(2):
+        Fa = CF[2 + a]
+        for bb in range(2):
+            blk = 2 + a + bb          # r_{ba}: (0,0)->2, (0,1)->3, (1,1)->4
+            for J in range(2):
+                Fa[blk, J] += Lam[bb, J]
+            for J in range(3):
+                Fa[bb, J] = (dgup[a, bb, 0] * E[0, J] + dgup[a, bb, 1] * E[1, J]
+                             + dgup[a, bb, 2] * E[2, J])
+        for J in range(2):
+            Fa[5, J] = na[a, 0] * E[0, J] + na[a, 1] * E[1, J] + na[a, 2] * E[2, J]
+        Fa[6 + a, 2] = 1.0
+    # A-slots: CA0 = CF0 Gi, CA1 = (CF1 - CF0 M1) Gi, CA1a = (CF1a - CF0 Ma) Gi
+    for s in range(4):
+        for p in range(9):
+            for J in range(3):
+                acc = 0.0
+                for L in range(3):
+                    f = CF[s, p, L]
+                    if s == 1:
+                        for I in range(3):
+                            f -= CF[0, p, I] * M1[I, L]
+                    elif s >= 2:
+                        for I in range(3):
+                            f -= CF[0, p, I] * gr[5 + s - 2][I, L]
+                    acc += f * Gi[L, J]
+                CA[s, p, J] = acc
+
+    # directions D0^k = e_k (x) Gi[2, :], D1a^k = e_k (x) (v_a^T Gi)
+    D0 = vec[0:3]
+    D1 = vec[3:9]
+    for k in range(3):
+        for p in range(9):
+            D0[k, p] = 0.0
+            for a in range(2):
+                D1[3 * a + k, p] = 0.0
+        for J in range(3):
+            D0[k, 3 * k + J] = Gi[2, J]
+    for a in range(2):
+        va = sv[a]
+        for J in range(3):
+            va[J] = na[a, 0] * E[0, J] + na[a, 1] * E[1, J] + na[a, 2] * E[2, J] - gr[5 + a][2, J]
+        for k in range(3):
+            for L in range(3):
+                D1[3 * a + k, 3 * k + L] = va[0] * Gi[0, L] + va[1] * Gi[1, L] + va[2] * Gi[2, L]
+
+    # ---- U: known blocks, then y1 by Newton on the membrane condition -----
+    for i in range(3):
+        for p in range(5):
+            U[i, p] = v[3 * p + i]
+        for p in range(5, 9):
+            U[i, p] = 0.0
+    ff = sv[2]
+    cross(v[0:3], v[3:6], ff)   # r_1 x r_2: current normal direction
+    nf = np.sqrt(ff[0] ** 2 + ff[1] ** 2 + ff[2] ** 2)
+    if not nf > 0.0 or not np.isfinite(nf):
+        return nan, ERR_CURRENT
+    if y1[0] == 0.0 and y1[1] == 0.0 and y1[2] == 0.0:
+        # orient with the reference normal: same sign as (R_1 x R_2).(r_1 x r_2)
+        for i in range(3):
+            y1[i] = ff[i] / nf * G0L[2, 2]
+    status = _solve_y1(kind, psi, params, g0, m, CA[0], U, y1, D0, S[0], ms, B, LB, sv[3])
+    if status != OK:
+        return nan, status
+    W = ms[0][0]
+    P = ms[7]
+    AA = ms[8]
+
+    if not bend:
+        L = cW * W - h * (m[0] * y1[0] + m[1] * y1[1] + m[2] * y1[2])
+        for k in range(3):
+            y2[k] = 0.0
+        if mode == MODE_ENERGY:
+            return L, OK
+        _membrane_derivatives(mode, cW, g0, CA[0], D0, P, AA, LB, grad, hess, sc)
+        return L, OK
+
+    # ---- Y_a (surface derivative of the membrane condition) -------------
+    rhs = sv[4]
+    tmp = vec[11]
+    for a in range(2):
+        _slot(U, CA[2 + a], S[2 + a])          # with Y_a = 0
+        _matvec9(AA, S[2 + a], tmp)
+        for k in range(3):
+            rhs[k] = -(g0 * (t1a[a] * _dot9(P, D0[k]) + _dot9(tmp, D0[k])
+                             + _dot9(P, D1[3 * a + k])) - dm[a, k])
+        chol3_solve(LB, rhs, rhs)
+        for i in range(3):
+            U[i, 6 + a] = rhs[i]
+        _slot(U, CA[2 + a], S[2 + a])
+    # ---- y2 (inner minimum) ---------------------------------------------
+    _slot(U, CA[1], S[1])                      # with y2 = 0
+    _matvec9(AA, S[1], tmp)
+    # D0^k N1 as a direction: e_k (x) (Gi[2,:] N1)
+    nGN = sv[0]
+    for J in range(3):
+        nGN[J] = Gi[2, 0] * N1[0, J] + Gi[2, 1] * N1[1, J] + Gi[2, 2] * N1[2, J]
+    cq = 1.0 if cons else 0.0
+    for k in range(3):
+        pnk = _dot9(P, D0[k])
+        pnn = P[3 * k] * nGN[0] + P[3 * k + 1] * nGN[1] + P[3 * k + 2] * nGN[2]
+        rhs[k] = -g0 * ((t1 - 2.0 * cH * H) * pnk + _dot9(tmp, D0[k]) - pnn) + cq * qbar[k]
+    chol3_solve(LB, rhs, rhs)
+    for i in range(3):
+        U[i, 8] = rhs[i]
+        y2[i] = rhs[i]
+    _slot(U, CA[1], S[1])
+    A0, A1 = S[0], S[1]
+
+    # X = A1 Q1 + A0 Q0 (all directions along which DW is taken linearly)
+    Q1 = gr[7]
+    Q0 = np.empty((3, 3))
+    Kk = np.empty((3, 3))
+    _mm(kap, Gi, Kk)             # kappa Gi
+    for I in range(3):
+        for J in range(3):
+            gk = G0L[I, 0] * Kk[0, J] + G0L[I, 1] * Kk[1, J] + G0L[I, 2] * Kk[2, J]
+            g1k = G1L[I, 0] * Kk[0, J] + G1L[I, 1] * Kk[1, J] + G1L[I, 2] * Kk[2, J]
+            Q1[I, J] = cB * (((2.0 * t1 - 4.0 * cH * H) if I == J else 0.0)
+                             - 2.0 * N1[I, J] + 2.0 * cK * gk)
+            Q0[I, J] = cB * 2.0 * cK * g1k
+    X = vec[9]
+    for i in range(3):
+        for J in range(3):
+            s = 0.0
+            for L in range(3):
+                s += A1[3 * i + L] * Q1[L, J] + A0[3 * i + L] * Q0[L, J]
+            X[3 * i + J] = s
+    _matvec9(AA, A1, tmp)
+    L = (cW * W + _dot9(P, X) + cB * _dot9(A1, tmp)
+         - h * (m[0] * y1[0] + m[1] * y1[1] + m[2] * y1[2])
+         - cq * h ** 3 / 12.0 * (qbar[0] * y2[0] + qbar[1] * y2[1] + qbar[2] * y2[2]))
+    if mode == MODE_ENERGY:
+        return L, OK
+
+    # ---- gradient: multipliers of (c0, c1, c2) --------------------------
+    d3A1, d3D0 = M9[0], M9[1:4]
+    mat_d3(ms, A1, d3A1)
+    for k in range(3):
+        mat_d3(ms, D0[k], d3D0[k])
+    Lx, cx, lam = sc[14], sc[15], sc[20]
+    for q in range(NXI):
+        Lx[q] = 0.0
+        for r in range(9):
+            cx[r, q] = 0.0
+    gA = vec[10]
+    # dLtil/dA0 = cW P + AA X + cB D3(A1) A1 + P Q0^T
+    _matvec9(AA, X, gA)
+    _matvec9(d3A1, A1, tmp)
+    for i in range(3):
+        for L_ in range(3):
+            pq = P[3 * i] * Q0[L_, 0] + P[3 * i + 1] * Q0[L_, 1] + P[3 * i + 2] * Q0[L_, 2]
+            gA[3 * i + L_] += cW * P[3 * i + L_] + cB * tmp[3 * i + L_] + pq
+    _add_to_xi(gA, CA[0], 1.0, Lx)
+    # dLtil/dA1 = P Q1^T + 2 cB AA A1
+    _matvec9(AA, A1, tmp)
+    for i in range(3):
+        for L_ in range(3):
+            pq = P[3 * i] * Q1[L_, 0] + P[3 * i + 1] * Q1[L_, 1] + P[3 * i + 2] * Q1[L_, 2]
+            gA[3 * i + L_] = pq + 2.0 * cB * tmp[3 * i + L_]
+    _add_to_xi(gA, CA[1], 1.0, Lx)
+    for i in range(3):
+        Lx[3 * Y1_BLOCK + i] -= h * m[i]
+        Lx[3 * 8 + i] -= cq * h ** 3 / 12.0 * qbar[i]
+    # constraint Jacobians
+    for k in range(3):
+        _matvec9(AA, D0[k], tmp)
+        _add_to_xi(tmp, CA[0], g0, cx[k])
+        for a in range(2):
+            _add_to_xi(tmp, CA[2 + a], g0, cx[3 + 3 * a + k])
+            _matvec9(d3D0[k], S[2 + a], gA)
+            for p in range(9):
+                gA[p] += t1a[a] * tmp[p]
+            _add_to_xi(gA, CA[0], g0, cx[3 + 3 * a + k])
+            _matvec9(AA, D1[3 * a + k], gA)
+            _add_to_xi(gA, CA[0], g0, cx[3 + 3 * a + k])
+    # c_z = [[B, 0, 0], [K1, B, 0], [K2, 0, B]] (blocks of cx in z = y1, Y1, Y2)
+    # lam_a = -B^{-1} dLtil/dY_a ; lam_0 = -B^{-1}(dLtil/dy1 + K1^T lam_1 + K2^T lam_2)
+    z0 = 3 * Y1_BLOCK
+    for a in range(2):
+        for k in range(3):
+            rhs[k] = -Lx[z0 + 3 + 3 * a + k]
+        chol3_solve(LB, rhs, rhs)
+        for k in range(3):
+            lam[3 + 3 * a + k] = rhs[k]
+    for l in range(3):
+        s = -Lx[z0 + l]
+        for a in range(2):
+            for k in range(3):
+                s -= cx[3 + 3 * a + k, z0 + l] * lam[3 + 3 * a + k]
+        rhs[l] = s
+    chol3_solve(LB, rhs, rhs)
+    for k in range(3):
+        lam[k] = rhs[k]
+    for q in range(NV):
+        s = Lx[q]
+        for r in range(9):
+            s += lam[r] * cx[r, q]
+        grad[q] = s
+    if mode == MODE_GRADIENT:
+        return L, OK
+
+    # ---- Hessian -------------------------------------------------------
+    Zv = sc[16]
+    # Z_y1 = -B^{-1} c0_v ; Z_Ya = -B^{-1}(ca_v + K_a Z_y1)
+    for q in range(NV):
+        for k in range(3):
+            rhs[k] = -cx[k, q]
+        chol3_solve(LB, rhs, rhs)
+        for k in range(3):
+            Zv[k, q] = rhs[k]
+        for a in range(2):
+            for k in range(3):
+                s = -cx[3 + 3 * a + k, q]
+                for l in range(3):
+                    s -= cx[3 + 3 * a + k, z0 + l] * Zv[l, q]
+                rhs[k] = s
+            chol3_solve(LB, rhs, rhs)
+            for k in range(3):
+                Zv[3 + 3 * a + k, q] = rhs[k]
+    # lambda-weighted directions: Xtot = X + g0 (Dl0 + sum_a (t1a Dla + D1la))
+    Xt = vec[11]
+    for p in range(9):
+        Xt[p] = X[p]
+    for k in range(3):
+        for p in range(9):
+            Xt[p] += g0 * lam[k] * D0[k, p]
+            for a in range(2):
+                la = lam[3 + 3 * a + k]
+                Xt[p] += g0 * la * (t1a[a] * D0[k, p] + D1[3 * a + k, p])
+    H00, H01, H0a, work = M9[4], M9[5], M9[6:8], M9[8]
+    mat_d3(ms, Xt, H00)
+    for p in range(9):
+        for q in range(9):
+            H00[p, q] += cW * AA[p, q]
+            H01[p, q] = 2.0 * cB * d3A1[p, q]
+    mat_d4(ms, A1, A1, cB, H00)
+    Dla = gA
+    for a in range(2):
+        for p in range(9):
+            Dla[p] = 0.0
+            for k in range(3):
+                Dla[p] += lam[3 + 3 * a + k] * D0[k, p]
+        mat_d4(ms, S[2 + a], Dla, g0, H00)
+        for p in range(9):
+            for q in range(9):
+                s = 0.0
+                for k in range(3):
+                    s += lam[3 + 3 * a + k] * d3D0[k][p, q]
+                H0a[a][p, q] = g0 * s
+    if cK != 0.0:   # AA R0 + R0^T AA (X depends on A0 through Q0)
+        _right_map(AA, Q0, work)
+        for p in range(9):
+            for q in range(9):
+                H00[p, q] += work[p, q] + work[q, p]
+    _right_map(AA, Q1, work)
+    for p in range(9):
+        for q in range(9):
+            H01[p, q] += work[p, q]
+    # slot Jacobians with y2 fixed, then P^T Hess P with y2 condensed
+    Js = sc[17]
+    for s in range(4):
+        _slot_jacobian(CA[s], Zv, Js[s])
+    wJ = sc[18]
+    for a in range(NV):
+        for b in range(NV):
+            hess[a, b] = 0.0
+    _add_JtHJ(Js[0], H00, Js[0], False, wJ, hess)
+    _add_JtHJ(Js[0], H01, Js[1], True, wJ, hess)
+    for p in range(9):
+        for q in range(9):
+            work[p, q] = 2.0 * cB * AA[p, q]
+    _add_JtHJ(Js[1], work, Js[1], False, wJ, hess)
+    for a in range(2):
+        _add_JtHJ(Js[0], H0a[a], Js[2 + a], True, wJ, hess)
+    # d2/dy2 dv = D0^k . (H10 J0 + H11 J1); d2/dy2^2 = 2 cB B / g0
+    Ly = sc[19]
+    for k in range(3):
+        for q in range(NV):
+            s = 0.0
+            for p in range(9):
+                dk = D0[k, p]
+                if dk != 0.0:
+                    t = 0.0
+                    for r in range(9):
+                        t += H01[r, p] * Js[0][r, q] + work[p, r] * Js[1][r, q]
+                    s += dk * t
+            Ly[k, q] = s
+    f = g0 / (2.0 * cB)
+    for q in range(NV):
+        for k in range(3):
+            rhs[k] = Ly[k, q]
+        chol3_solve(LB, rhs, rhs)
+        for a in range(NV):
+            hess[a, q] -= f * (Ly[0, a] * rhs[0] + Ly[1, a] * rhs[1] + Ly[2, a] * rhs[2])
+    return L, OK
+
+
+@njit(cache=True)
+def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, ms, B, LB, step):
+    """Newton with backtracking for P(F0) n = m, i.e. the minimum over y1 of
+    g0 W(A0) - m.y1 (convex along the rank-one family F_t + y1 (x) n)."""
+    for i in range(3):
+        U[i, Y1_BLOCK] = y1[i]
+    _slot(U, CA0, A0)
+    st = mat_prepare(kind, psi, params, A0.reshape(3, 3), ms)
+    if st != 0:
+        return ERR_INVERTED if st == 1 else ERR_LAW
+    res = np.empty(3)
+    done = False
+    for it in range(_Y1_MAXIT):
+        phi = g0 * ms[0][0] - (m[0] * y1[0] + m[1] * y1[1] + m[2] * y1[2])
+        rn = 0.0
+        for k in range(3):
+            res[k] = g0 * _dot9(ms[7], D0[k]) - m[k]
+            rn += res[k] * res[k]
+            for l in range(3):
+                s = 0.0
+                for p in range(9):
+                    if D0[k, p] != 0.0:
+                        s += D0[k, p] * (ms[8][p, 3 * l] * D0[l, 3 * l]
+                                         + ms[8][p, 3 * l + 1] * D0[l, 3 * l + 1]
+                                         + ms[8][p, 3 * l + 2] * D0[l, 3 * l + 2])
+                B[k, l] = g0 * s
+        if not chol3(B, LB):
+            return ERR_ELLIPTICITY
+        if it > 0 and done:
+            return OK
+        chol3_solve(LB, res, step)
+        slope = 0.0
+        ynorm = 0.0
+        snorm = 0.0
+        for k in range(3):
+            step[k] = -step[k]
+            slope += res[k] * step[k]
+            ynorm += y1[k] * y1[k]
+            snorm += step[k] * step[k]
+        alpha = 1.0
+        accepted = False
+        for _ in range(40):
+            for i in range(3):
+                U[i, Y1_BLOCK] = y1[i] + alpha * step[i]
+            _slot(U, CA0, A0)
+            st = mat_prepare(kind, psi, params, A0.reshape(3, 3), ms)
+            if st == 0:
+                phin = g0 * ms[0][0] - (m[0] * U[0, 5] + m[1] * U[1, 5] + m[2] * U[2, 5])
+                rnn = 0.0
+                for k in range(3):
+                    t = g0 * _dot9(ms[7], D0[k]) - m[k]
+                    rnn += t * t
+                if phin <= phi + 1e-4 * alpha * slope or rnn < rn:
+                    accepted = True
+                    break
+            elif st == 2:
+                return ERR_LAW
+            alpha *= 0.5
+        if not accepted:
+            return ERR_Y1_NEWTON
+        for i in range(3):
+            y1[i] = U[i, Y1_BLOCK]
+        # converged once a full quadratic-rate step is tiny: the state now
+        # holds the polished root; one more pass refreshes B
+        done = alpha == 1.0 and snorm <= 1e-20 * max(ynorm, 1e-300)
+    return ERR_Y1_NEWTON
+
+
+@njit(cache=True)
+def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, LB, grad, hess, sc):
+    """Membrane level: L = cW W(A0) - h m.y1, envelope in y1 (multiplier 0)."""
+    Lx = sc[14]
+    for q in range(NXI):
+        Lx[q] = 0.0
+    g = sc[10][10]
+    for p in range(9):
+        g[p] = cW * P[p]
+    _add_to_xi(g, CA0, 1.0, Lx)
+    for q in range(NV):
+        grad[q] = Lx[q]
+    if mode < MODE_HESSIAN:
+        return
+    # dy1/dv = -B^{-1} dc0/dv, dc0_k/dA0 = g0 AA D0^k
+    cx = sc[15]
+    tmp = sc[10][11]
+    for k in range(3):
+        for q in range(NXI):
+            cx[k, q] = 0.0
+        _matvec9(AA, D0[k], tmp)
+        _add_to_xi(tmp, CA0, g0, cx[k])
+    Zv = sc[16]
+    rhs = np.empty(3)
+    for q in range(NV):
+        for k in range(3):
+            rhs[k] = -cx[k, q]
+        chol3_solve(LB, rhs, rhs)
+        for k in range(3):
+            Zv[k, q] = rhs[k]
+    Js = sc[17]
+    _slot_jacobian(CA0, Zv, Js[0])
+    H = sc[13][4]
+    for p in range(9):
+        for q in range(9):
+            H[p, q] = cW * AA[p, q]
+    for a in range(NV):
+        for b in range(NV):
+            hess[a, b] = 0.0
+    _add_JtHJ(Js[0], H, Js[0], False, sc[18], hess)

@@ -1,0 +1,103 @@
+"""Allocation-free 2x2 / 3x3 linear algebra for the Numba kernels.
+
+Everything here works on caller-provided arrays so that the point kernel can
+run without heap allocation inside element loops.
+"""
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def det3(a):
+    return (a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
+            - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+            + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
+
+
+@njit(cache=True)
+def cof3(a, out):
+    """Cofactor matrix, out[i, j] = d det(a) / d a[i, j]."""
+    out[0, 0] = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    out[0, 1] = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    out[0, 2] = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    out[1, 0] = a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]
+    out[1, 1] = a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]
+    out[1, 2] = a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]
+    out[2, 0] = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
+    out[2, 1] = a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
+    out[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+
+
+@njit(cache=True)
+def inv3(a, out):
+    """Inverse of a 3x3 matrix; returns the determinant (out untouched if 0)."""
+    d = det3(a)
+    if d == 0.0:
+        return d
+    out[0, 0] = (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]) / d
+    out[1, 0] = (a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]) / d
+    out[2, 0] = (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]) / d
+    out[0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) / d
+    out[1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) / d
+    out[2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) / d
+    out[0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) / d
+    out[1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) / d
+    out[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) / d
+    return d
+
+
+@njit(cache=True, inline="always")
+def cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True)
+def chol3(b, out):
+    """Cholesky factor (lower) of a symmetric 3x3 matrix.
+
+    Returns False when b is not positive definite (loss of ellipticity of the
+    acoustic tensor), in which case out is meaningless.
+    """
+    scale = abs(b[0, 0]) + abs(b[1, 1]) + abs(b[2, 2])
+    tiny = 1e-14 * scale
+    d0 = b[0, 0]
+    if not d0 > tiny:
+        return False
+    l00 = np.sqrt(d0)
+    l10 = b[1, 0] / l00
+    l20 = b[2, 0] / l00
+    d1 = b[1, 1] - l10 * l10
+    if not d1 > tiny:
+        return False
+    l11 = np.sqrt(d1)
+    l21 = (b[2, 1] - l20 * l10) / l11
+    d2 = b[2, 2] - l20 * l20 - l21 * l21
+    if not d2 > tiny:
+        return False
+    out[0, 0] = l00
+    out[1, 0] = l10
+    out[2, 0] = l20
+    out[1, 1] = l11
+    out[2, 1] = l21
+    out[2, 2] = np.sqrt(d2)
+    out[0, 1] = 0.0
+    out[0, 2] = 0.0
+    out[1, 2] = 0.0
+    return True
+
+
+@njit(cache=True)
+def chol3_solve(lo, rhs, out):
+    """Solve (L L^T) x = rhs for one right-hand side (rhs may alias out)."""
+    z0 = rhs[0] / lo[0, 0]
+    z1 = (rhs[1] - lo[1, 0] * z0) / lo[1, 1]
+    z2 = (rhs[2] - lo[2, 0] * z0 - lo[2, 1] * z1) / lo[2, 2]
+    x2 = z2 / lo[2, 2]
+    x1 = (z1 - lo[2, 1] * x2) / lo[1, 1]
+    x0 = (z0 - lo[1, 0] * x1 - lo[2, 0] * x2) / lo[0, 0]
+    out[0] = x0
+    out[1] = x1
+    out[2] = x2

@@ -1,0 +1,360 @@
+"""Hyperelastic laws (MODEL.md section 6).
+
+A law is the strain energy ``W(A)`` per unit volume of the grown (stress-free)
+state, as a function of the elastic deformation ``A = F G^{-1}``.  Units are
+the user's: moduli in stress units (e.g. Pa or kPa), ``W`` in energy per
+volume, consistently with lengths and loads given to the solver.
+
+Built-in laws
+-------------
+* :class:`NeoHookean` -- compressible neo-Hookean (paper eq:neo-Hookean),
+  ``W = C/2 (I1 - 3 - 2 ln J) + D/2 (J - 1)^2``, from ``(C, nu)`` or ``(C, D)``.
+* :class:`CubicStretch` -- the law of the paper's cylinder example (eq:WO),
+  ``W = nu [(2/27) i1^3 - i2 + 1]`` in the invariants ``i1 = tr U``,
+  ``i2 = (i1^2 - I1)/2`` of the right stretch ``U``; ``i1`` is the largest root
+  of ``t^4 - 2 I1 t^2 - 8 J t + I1^2 - 4 I2 = 0``, a smooth function of the
+  invariants of ``C``.  Its constant ``nu`` is a stiffness (the paper's symbol),
+  not a Poisson ratio.
+* :class:`StVenantKirchhoff` -- ``W = mu tr E^2 + lambda/2 (tr E)^2``,
+  ``E = (C - I)/2``.
+* :class:`LinearIsotropic` -- the linear law of eq:Ww,
+  ``W = lambda/2 (tr H)^2 + mu |sym H|^2``, ``H = A - I``, for small-strain
+  checks against classical plate and shell theory.
+
+User laws
+---------
+Any isotropic law ``W = psi(I1, I2, J)`` can be added without touching the
+engine: give :class:`InvariantLaw` a Numba ``cfunc`` with signature
+``PSI_SIGNATURE`` that writes the 35 partial derivatives of ``psi`` of order 0
+to 4 in the compact order ``COMPACT_INDEX`` (see :func:`invariant_law_from_sympy`
+to generate it from a SymPy expression).  The engine compiles once for all laws
+(the callback is a run-time function pointer), so adding a law costs no
+recompilation of the shell kernels.
+"""
+
+import math
+
+import numba as nb
+import numpy as np
+
+from .kernels.material import (COMPACT_INDEX, KIND_INVARIANT, KIND_LINEAR,
+                               N_PSI, PSI_SIGNATURE, mat_d3, mat_d4,
+                               mat_prepare, new_state)
+
+__all__ = ["Law", "InvariantLaw", "NeoHookean", "CubicStretch",
+           "StVenantKirchhoff", "LinearIsotropic", "invariant_law_from_sympy",
+           "PSI_SIGNATURE", "COMPACT_INDEX"]
+
+
+def _check_finite(name, **values):
+    for key, val in values.items():
+        if not (isinstance(val, (int, float, np.floating, np.integer)) and math.isfinite(val)):
+            raise ValueError(f"{name}: parameter {key}={val!r} must be a finite number")
+
+
+class Law:
+    """Base class: a law kind, a parameter vector and (for invariant laws) psi."""
+
+    kind = KIND_INVARIANT
+    name = "law"
+
+    def __init__(self, params, psi):
+        self.params = np.ascontiguousarray(params, dtype=np.float64)
+        self.psi = psi
+
+    def __repr__(self):
+        return f"{type(self).__name__}({', '.join(f'{v:g}' for v in self.params)})"
+
+    # -- convenience evaluation (tests, post-processing); not used by engines --
+    def evaluate(self, A, order=2, c=None, d=None):
+        """Return W, P (3x3), AA (9x9) at A, plus D3(c) and D4(c, d) if asked.
+
+        ``AA[3*i+J, 3*k+L] = d2W/dA_iJ dA_kL``; D3(c) = D3W[., ., c] and
+        D4(c, d) = D4W[., ., c, d] as 9x9 matrices (c, d: 3x3 directions).
+        """
+        A = np.ascontiguousarray(A, dtype=np.float64)
+        st = new_state()
+        status = mat_prepare(self.kind, self.psi, self.params, A, st)
+        if status == 1:
+            raise ValueError(f"{self!r}: det A = {np.linalg.det(A):g} <= 0 (inverted)")
+        if status == 2:
+            raise ValueError(f"{self!r}: non-finite energy derivatives at A")
+        out = [st[0][0], st[7].reshape(3, 3).copy(), st[8].copy()]
+        if order >= 3:
+            m3 = np.zeros((9, 9))
+            mat_d3(st, np.ascontiguousarray(c, dtype=np.float64).reshape(9), m3)
+            out.append(m3)
+        if order >= 4:
+            m4 = np.zeros((9, 9))
+            mat_d4(st, np.ascontiguousarray(c, dtype=np.float64).reshape(9),
+                   np.ascontiguousarray(d, dtype=np.float64).reshape(9), 1.0, m4)
+            out.append(m4)
+        return tuple(out)
+
+
+class InvariantLaw(Law):
+    """A user law ``W = psi(I1, I2, J)`` given by a cfunc of PSI_SIGNATURE."""
+
+    kind = KIND_INVARIANT
+
+    def __init__(self, psi_cfunc, params=(), name="custom"):
+        params = tuple(float(p) for p in params)
+        for i, p in enumerate(params):
+            _check_finite(name, **{f"params[{i}]": p})
+        super().__init__(params if params else (0.0,), psi_cfunc)
+        self.name = name
+        # the stress-free state must be stress free: P(I) = 0
+        W0, P0, AA0 = self.evaluate(np.eye(3))
+        scale = max(1e-300, np.abs(AA0).max())
+        if abs(W0) > 1e-10 * scale or np.abs(P0).max() > 1e-10 * scale:
+            raise ValueError(f"law {name!r}: W(I) = {W0:g}, |P(I)| = {np.abs(P0).max():g};"
+                             " the energy must vanish with zero stress at A = I")
+
+
+# ---------------------------------------------------------------------------
+# built-in psi callbacks
+# ---------------------------------------------------------------------------
+
+@nb.cfunc(PSI_SIGNATURE, cache=True)
+def _psi_neo_hookean(I1, I2, J, par, out):
+    C = par[0]
+    D = par[1]
+    for n in range(35):
+        out[n] = 0.0
+    lnJ = math.log(J)
+    out[0] = 0.5 * C * (I1 - 3.0 - 2.0 * lnJ) + 0.5 * D * (J - 1.0) ** 2
+    out[1] = 0.5 * C                          # d/dI1
+    out[3] = -C / J + D * (J - 1.0)           # d/dJ
+    out[9] = C / (J * J) + D                  # d2/dJ2
+    out[19] = -2.0 * C / J ** 3               # d3/dJ3
+    out[34] = 6.0 * C / J ** 4                # d4/dJ4
+
+
+@nb.cfunc(PSI_SIGNATURE, cache=True)
+def _psi_svk(I1, I2, J, par, out):
+    lam = par[0]
+    mu = par[1]
+    for n in range(35):
+        out[n] = 0.0
+    # W = mu/4 (I1^2 - 2 I2 - 2 I1 + 3) + lam/8 (I1 - 3)^2
+    out[0] = 0.25 * mu * (I1 * I1 - 2.0 * I2 - 2.0 * I1 + 3.0) + 0.125 * lam * (I1 - 3.0) ** 2
+    out[1] = 0.25 * mu * (2.0 * I1 - 2.0) + 0.25 * lam * (I1 - 3.0)
+    out[2] = -0.5 * mu
+    out[4] = 0.5 * mu + 0.25 * lam
+
+
+@nb.cfunc(PSI_SIGNATURE, cache=True)
+def _psi_zero(I1, I2, J, par, out):
+    for n in range(35):
+        out[n] = 0.0
+
+
+# -- truncated Taylor arithmetic in (I1, I2, J), total degree 4 -------------
+# monomial n <-> exponents of COMPACT_INDEX[n]; derivative = coef * prod(e!)
+
+def _taylor_tables():
+    expo = np.array([[t.count(k) for k in range(3)] for t in COMPACT_INDEX], np.int64)
+    where = {tuple(e): n for n, e in enumerate(expo.tolist())}
+    prod = []
+    for a in range(N_PSI):
+        for b in range(N_PSI):
+            e = tuple(expo[a] + expo[b])
+            if sum(e) <= 4:
+                prod.append((a, b, where[e]))
+    fact = np.array([math.factorial(e[0]) * math.factorial(e[1]) * math.factorial(e[2])
+                     for e in expo], np.float64)
+    return np.array(prod, np.int64), fact
+
+
+_TPROD, _TFACT = _taylor_tables()
+
+
+@nb.njit(cache=True)
+def _tmul(a, b, out):
+    for n in range(out.shape[0]):
+        out[n] = 0.0
+    for r in range(_TPROD.shape[0]):
+        out[_TPROD[r, 2]] += a[_TPROD[r, 0]] * b[_TPROD[r, 1]]
+
+
+@nb.njit(cache=True)
+def _cubic_stretch_psi(I1, I2, J, nu, out):
+    # largest root t0 of q(t) = t^4 - 2 I1 t^2 - 8 J t + I1^2 - 4 I2 (= tr U)
+    t = math.sqrt(3.0 * I1)
+    for _ in range(100):
+        q = t ** 4 - 2.0 * I1 * t * t - 8.0 * J * t + I1 * I1 - 4.0 * I2
+        dq = 4.0 * t ** 3 - 4.0 * I1 * t - 8.0 * J
+        dt = q / dq
+        t -= dt
+        if abs(dt) <= 1e-15 * t:
+            break
+    dq0 = 4.0 * t ** 3 - 4.0 * I1 * t - 8.0 * J
+    # Taylor variables: I1 + e1, I2 + e2, J + e3; unknown T = t + tau
+    x1 = np.zeros(35)
+    x2 = np.zeros(35)
+    x3 = np.zeros(35)
+    x1[0] = I1
+    x1[1] = 1.0
+    x2[0] = I2
+    x2[2] = 1.0
+    x3[0] = J
+    x3[3] = 1.0
+    T = np.zeros(35)
+    T[0] = t
+    T2 = np.zeros(35)
+    T4 = np.zeros(35)
+    tmp = np.zeros(35)
+    q = np.zeros(35)
+    x11 = np.zeros(35)
+    _tmul(x1, x1, x11)
+    for _ in range(5):  # simplified Newton gains one order per sweep
+        _tmul(T, T, T2)
+        _tmul(T2, T2, T4)
+        for n in range(35):
+            q[n] = T4[n] + x11[n] - 4.0 * x2[n]
+        _tmul(x1, T2, tmp)
+        for n in range(35):
+            q[n] -= 2.0 * tmp[n]
+        _tmul(x3, T, tmp)
+        for n in range(35):
+            q[n] -= 8.0 * tmp[n]
+        for n in range(35):
+            T[n] -= q[n] / dq0
+    # psi = nu [(2/27) T^3 - (T^2 - I1)/2 + 1]
+    _tmul(T, T, T2)
+    _tmul(T2, T, tmp)
+    for n in range(35):
+        out[n] = nu * ((2.0 / 27.0) * tmp[n] - 0.5 * (T2[n] - x1[n])) * _TFACT[n]
+    out[0] += nu
+
+
+@nb.cfunc(PSI_SIGNATURE, cache=True)
+def _psi_cubic_stretch(I1, I2, J, par, out):
+    res = np.zeros(35)
+    _cubic_stretch_psi(I1, I2, J, par[0], res)
+    for n in range(35):
+        out[n] = res[n]
+
+
+# ---------------------------------------------------------------------------
+# built-in laws
+# ---------------------------------------------------------------------------
+
+class NeoHookean(Law):
+    """Compressible neo-Hookean, ``W = C/2 (I1 - 3 - 2 ln J) + D/2 (J - 1)^2``.
+
+    Give the shear modulus ``C`` and either Poisson's ratio ``nu``
+    (``D = 2 C nu / (1 - 2 nu)``, -1 < nu < 1/2) or ``D`` directly.
+    """
+
+    name = "neo-Hookean"
+
+    def __init__(self, C, nu=None, D=None):
+        if (nu is None) == (D is None):
+            raise ValueError("NeoHookean: give exactly one of nu or D")
+        _check_finite("NeoHookean", C=C)
+        if C <= 0:
+            raise ValueError(f"NeoHookean: shear modulus C={C!r} must be > 0")
+        if nu is not None:
+            _check_finite("NeoHookean", nu=nu)
+            if not -1.0 < nu < 0.5:
+                raise ValueError(f"NeoHookean: Poisson ratio nu={nu!r} must satisfy -1 < nu < 0.5"
+                                 " (nu -> 0.5 is incompressible, not representable)")
+            D = 2.0 * C * nu / (1.0 - 2.0 * nu)
+        _check_finite("NeoHookean", D=D)
+        if D <= -2.0 * C / 3.0:
+            raise ValueError(f"NeoHookean: D={D!r} gives a non-positive bulk modulus (need D > -2C/3)")
+        self.C, self.D = float(C), float(D)
+        super().__init__((C, D), _psi_neo_hookean)
+
+    @property
+    def nu(self):
+        return self.D / (2.0 * (self.C + self.D))
+
+
+class CubicStretch(Law):
+    """The cylinder example's law (paper eq:WO), stiffness constant ``nu`` > 0."""
+
+    name = "cubic-stretch"
+
+    def __init__(self, nu=1.0):
+        _check_finite("CubicStretch", nu=nu)
+        if nu <= 0:
+            raise ValueError(f"CubicStretch: nu={nu!r} must be > 0")
+        super().__init__((nu,), _psi_cubic_stretch)
+
+
+def _lame(name, lam, mu):
+    _check_finite(name, lam=lam, mu=mu)
+    if mu <= 0:
+        raise ValueError(f"{name}: shear modulus mu={mu!r} must be > 0")
+    if lam + 2.0 * mu / 3.0 <= 0:
+        raise ValueError(f"{name}: bulk modulus lam + 2 mu/3 = {lam + 2 * mu / 3:g} must be > 0")
+
+
+def _young_to_lame(name, E, nu):
+    _check_finite(name, E=E, nu=nu)
+    if E <= 0:
+        raise ValueError(f"{name}: Young's modulus E={E!r} must be > 0")
+    if not -1.0 < nu < 0.5:
+        raise ValueError(f"{name}: Poisson ratio nu={nu!r} must satisfy -1 < nu < 0.5")
+    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+class StVenantKirchhoff(Law):
+    """``W = mu tr E^2 + lambda/2 (tr E)^2`` with Lame constants (lam, mu)."""
+
+    name = "Saint Venant-Kirchhoff"
+
+    def __init__(self, lam, mu):
+        _lame("StVenantKirchhoff", lam, mu)
+        super().__init__((lam, mu), _psi_svk)
+
+    @classmethod
+    def from_young(cls, E, nu):
+        return cls(*_young_to_lame("StVenantKirchhoff", E, nu))
+
+
+class LinearIsotropic(Law):
+    """Linear isotropic law eq:Ww with Lame constants (lam, mu); small strain only."""
+
+    name = "linear isotropic"
+    kind = KIND_LINEAR
+
+    def __init__(self, lam, mu):
+        _lame("LinearIsotropic", lam, mu)
+        super().__init__((lam, mu), _psi_zero)
+
+    @classmethod
+    def from_young(cls, E, nu):
+        return cls(*_young_to_lame("LinearIsotropic", E, nu))
+
+
+def invariant_law_from_sympy(expr, I1, I2, J, params=(), values=(), name="custom"):
+    """Build an :class:`InvariantLaw` from a SymPy expression of (I1, I2, J).
+
+    ``params`` are SymPy symbols of material constants and ``values`` their
+    numbers.  SymPy (not a runtime dependency) must be installed.  The
+    derivatives of order 0..4 are generated symbolically and compiled into a
+    cfunc once per call.
+    """
+    import sympy as sp
+
+    xs = sp.symbols("I1 I2 J", positive=True)
+    expr = expr.subs(dict(zip((I1, I2, J), xs)))
+    lines = []
+    names = {}
+    for i, p in enumerate(params):
+        names[p] = sp.Symbol(f"_p{i}")
+        lines.append(f"    _p{i} = par[{i}]")
+    for n, tup in enumerate(COMPACT_INDEX):
+        e = expr
+        for k in tup:
+            e = sp.diff(e, xs[k])
+        e = sp.simplify(e.subs(names))
+        lines.append(f"    out[{n}] = {sp.pycode(e)}")
+    src = "def _psi(I1, I2, J, par, out):\n" + "\n".join(lines) + "\n"
+    scope = {"math": math}
+    exec(src, scope)
+    cf = nb.cfunc(PSI_SIGNATURE)(scope["_psi"])
+    return InvariantLaw(cf, values, name=name)
