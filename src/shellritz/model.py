@@ -92,3 +92,25 @@ def evaluate_point(law, v, ref, h, level="consistent", G0=None, G1=None, dG0=Non
     if status != OK:
         raise ShellError(f"point kernel failed: {STATUS_TEXT[status]}")
     return PointResult(L, grad, hess, y1, y2)
+
+
+def reference_geometry(ref):
+    """Mean curvature H, Gaussian curvature K and unit normal n at a point.
+
+    ``ref`` = (R_1, R_2, R_11, R_12, R_22).  Conventions of MODEL.md section 1:
+    ``n = R_1 x R_2 / |R_1 x R_2|``, ``kappa = -dn/dR``; the unit sphere with
+    outward normal has H = -1, K = 1.
+    """
+    from .kernels.point import _reference_geometry
+    ref = _arr(ref, (15,))
+    E, Lam, dgup, na, kap = (np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((2, 2, 3)),
+                             np.zeros((2, 3)), np.zeros((3, 3)))
+    H, K, ok = _reference_geometry(ref, E, Lam, dgup, na, kap)
+    if not ok:
+        raise ShellError("degenerate reference tangents (R_1 x R_2 = 0)")
+    return H, K, E[:, 2].copy()
+
+
+def thickness_jacobian(H, K, Z):
+    """mu(Z) = 1 - 2 H Z + K Z^2 (dV = mu dZ dA)."""
+    return 1.0 - 2.0 * H * Z + K * Z * Z

@@ -104,7 +104,9 @@ def new_scratch():
             np.zeros((4, 9, NV)),   # 17 slot Jacobians dA/dv (y2 fixed)
             np.zeros((9, NV)),      # 18 work
             np.zeros((3, NV)),      # 19 d2 Ltil / dy2 dv
-            np.zeros(9))            # 20 lambda (c0, c1, c2)
+            np.zeros(9),            # 20 lambda (c0, c1, c2)
+            np.zeros(15),           # 21 v in the local frame
+            np.zeros((6, 3)))       # 22 qbar, m, dm_1, dm_2, y1, y2 in the local frame
 
 
 # ---------------------------------------------------------------------------
@@ -321,7 +323,68 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     qbar, m, dm[a]: load resultants (eq:qm) and dm/dtheta^a.
     y1: in: warm start (zeros: none); out: the director.  y2: out.
     Returns (L, status); status != OK leaves L = nan.
+
+    Internally all vectors are taken to the local frame (spatial components
+    included), so that non-objective laws (LinearIsotropic) measure strain
+    from the reference; results are rotated back.
     """
+    E = sc[1]
+    H, K, ok = _reference_geometry(ref, E, sc[2], sc[3], sc[4], sc[5])
+    if not ok:
+        return np.nan, ERR_REFERENCE
+    # spatial vectors to the local frame
+    vl, loc = sc[21], sc[22]
+    for p in range(5):
+        _rot_t(E, v[3 * p:3 * p + 3], vl[3 * p:3 * p + 3])
+    _rot_t(E, qbar, loc[0])
+    _rot_t(E, m, loc[1])
+    _rot_t(E, dm[0], loc[2])
+    _rot_t(E, dm[1], loc[3])
+    _rot_t(E, y1, loc[4])
+    L, status = _kernel_local(mode, level, kind, psi, params, h, vl, H, K, G0, G1, dG0,
+                              loc[0], loc[1], loc[2:4], loc[4], loc[5], grad, hess, sc)
+    if status != OK:
+        return L, status
+    _rot(E, loc[4], y1)
+    _rot(E, loc[5], y2)
+    if mode >= MODE_GRADIENT:
+        for p in range(5):
+            _rot(E, grad[3 * p:3 * p + 3].copy(), grad[3 * p:3 * p + 3])
+    if mode == MODE_HESSIAN:
+        blk = np.empty((3, 3))
+        for p in range(5):
+            for q in range(5):
+                for i in range(3):
+                    for j in range(3):
+                        s = 0.0
+                        for k in range(3):
+                            s += hess[3 * p + i, 3 * q + k] * E[j, k]
+                        blk[i, j] = s
+                for i in range(3):
+                    for j in range(3):
+                        hess[3 * p + i, 3 * q + j] = (E[i, 0] * blk[0, j] + E[i, 1] * blk[1, j]
+                                                      + E[i, 2] * blk[2, j])
+    return L, OK
+
+
+@njit(cache=True, inline="always")
+def _rot_t(E, x, out):
+    """out = E^T x (global -> local components)."""
+    for J in range(3):
+        out[J] = E[0, J] * x[0] + E[1, J] * x[1] + E[2, J] * x[2]
+
+
+@njit(cache=True, inline="always")
+def _rot(E, x, out):
+    """out = E x (local -> global components)."""
+    for i in range(3):
+        out[i] = E[i, 0] * x[0] + E[i, 1] * x[1] + E[i, 2] * x[2]
+
+
+@njit(cache=True)
+def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
+                  qbar, m, dm, y1, y2, grad, hess, sc):
+    """point_kernel with every vector in the local frame (see point_kernel)."""
     ms = sc[0]
     E, Lam, dgup, na, kap, gr = sc[1], sc[2], sc[3], sc[4], sc[5], sc[6]
     CA, U, S, vec, sv, B3 = sc[7], sc[8], sc[9], sc[10], sc[11], sc[12]
@@ -329,10 +392,6 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     G0L, G1L, Gi, M1, N1, wk = gr[0], gr[1], gr[2], gr[3], gr[4], gr[7]
     B, LB = B3[0], B3[1]
     nan = np.nan
-
-    H, K, ok = _reference_geometry(ref, E, Lam, dgup, na, kap)
-    if not ok:
-        return nan, ERR_REFERENCE
     # growth in the local frame
     _to_local(G0, E, G0L)
     _to_local(G1, E, G1L)
@@ -669,9 +728,29 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
 
 
 @njit(cache=True)
+def _y1_residual(g0, m, y, D0, ms, res, B):
+    """Residual c0 = P n - m, its Jacobian B (acoustic tensor), and the merit
+    phi = g0 W - m.y whose minimizer over y is the root."""
+    P, AA = ms[7], ms[8]
+    rn = 0.0
+    for k in range(3):
+        res[k] = g0 * _dot9(P, D0[k]) - m[k]
+        rn += res[k] * res[k]
+        for l in range(3):
+            s = 0.0
+            for p in range(9):
+                if D0[k, p] != 0.0:
+                    s += D0[k, p] * (AA[p, 3 * l] * D0[l, 3 * l] + AA[p, 3 * l + 1] * D0[l, 3 * l + 1]
+                                     + AA[p, 3 * l + 2] * D0[l, 3 * l + 2])
+            B[k, l] = g0 * s
+    return g0 * ms[0][0] - (m[0] * y[0] + m[1] * y[1] + m[2] * y[2]), rn
+
+
+@njit(cache=True)
 def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, ms, B, LB, step):
     """Newton with backtracking for P(F0) n = m, i.e. the minimum over y1 of
-    g0 W(A0) - m.y1 (convex along the rank-one family F_t + y1 (x) n)."""
+    g0 W(A0) - m.y1 (convex along the rank-one family F_t + y1 (x) n).
+    On return (OK) the material state, B and chol(B) belong to the root."""
     for i in range(3):
         U[i, Y1_BLOCK] = y1[i]
     _slot(U, CA0, A0)
@@ -679,25 +758,22 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, ms, B, LB, step):
     if st != 0:
         return ERR_INVERTED if st == 1 else ERR_LAW
     res = np.empty(3)
-    done = False
+    ytry = np.empty(3)
+    Bs = np.empty((3, 3))
+    phi, rn = _y1_residual(g0, m, y1, D0, ms, res, B)
     for it in range(_Y1_MAXIT):
-        phi = g0 * ms[0][0] - (m[0] * y1[0] + m[1] * y1[1] + m[2] * y1[2])
-        rn = 0.0
-        for k in range(3):
-            res[k] = g0 * _dot9(ms[7], D0[k]) - m[k]
-            rn += res[k] * res[k]
-            for l in range(3):
-                s = 0.0
-                for p in range(9):
-                    if D0[k, p] != 0.0:
-                        s += D0[k, p] * (ms[8][p, 3 * l] * D0[l, 3 * l]
-                                         + ms[8][p, 3 * l + 1] * D0[l, 3 * l + 1]
-                                         + ms[8][p, 3 * l + 2] * D0[l, 3 * l + 2])
-                B[k, l] = g0 * s
-        if not chol3(B, LB):
-            return ERR_ELLIPTICITY
-        if it > 0 and done:
-            return OK
+        shifted = not chol3(B, LB)
+        if shifted:
+            # away from the root a non-convex law may have an indefinite B:
+            # modified Newton step (B + sigma I), energy decrease enforced below
+            sigma = 1e-8 * (abs(B[0, 0]) + abs(B[1, 1]) + abs(B[2, 2]) + 1e-300)
+            for _ in range(60):
+                for k in range(3):
+                    for l in range(3):
+                        Bs[k, l] = B[k, l] + (sigma if k == l else 0.0)
+                if chol3(Bs, LB):
+                    break
+                sigma *= 10.0
         chol3_solve(LB, res, step)
         slope = 0.0
         ynorm = 0.0
@@ -707,32 +783,31 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, ms, B, LB, step):
             slope += res[k] * step[k]
             ynorm += y1[k] * y1[k]
             snorm += step[k] * step[k]
+        # quadratic convergence: this step is the last
+        polish = not shifted and snorm <= 1e-20 * ynorm
         alpha = 1.0
         accepted = False
         for _ in range(40):
             for i in range(3):
-                U[i, Y1_BLOCK] = y1[i] + alpha * step[i]
+                ytry[i] = y1[i] + alpha * step[i]
+                U[i, Y1_BLOCK] = ytry[i]
             _slot(U, CA0, A0)
             st = mat_prepare(kind, psi, params, A0.reshape(3, 3), ms)
+            if st == 2:
+                return ERR_LAW
             if st == 0:
-                phin = g0 * ms[0][0] - (m[0] * U[0, 5] + m[1] * U[1, 5] + m[2] * U[2, 5])
-                rnn = 0.0
-                for k in range(3):
-                    t = g0 * _dot9(ms[7], D0[k]) - m[k]
-                    rnn += t * t
-                if phin <= phi + 1e-4 * alpha * slope or rnn < rn:
+                phin, rnn = _y1_residual(g0, m, ytry, D0, ms, res, B)
+                if polish or phin <= phi + 1e-4 * alpha * slope or rnn < rn:
                     accepted = True
                     break
-            elif st == 2:
-                return ERR_LAW
             alpha *= 0.5
         if not accepted:
-            return ERR_Y1_NEWTON
+            return ERR_Y1_NEWTON if st == 0 else ERR_INVERTED
         for i in range(3):
-            y1[i] = U[i, Y1_BLOCK]
-        # converged once a full quadratic-rate step is tiny: the state now
-        # holds the polished root; one more pass refreshes B
-        done = alpha == 1.0 and snorm <= 1e-20 * max(ynorm, 1e-300)
+            y1[i] = ytry[i]
+        phi, rn = phin, rnn
+        if polish:
+            return OK if chol3(B, LB) else ERR_ELLIPTICITY
     return ERR_Y1_NEWTON
 
 
