@@ -38,8 +38,8 @@ import numba as nb
 import numpy as np
 
 from .kernels.material import (COMPACT_INDEX, KIND_INVARIANT, KIND_LINEAR,
-                               N_PSI, PSI_SIGNATURE, mat_d3, mat_d4,
-                               mat_prepare, new_state)
+                               M_AA, N_PSI, PSI_SIGNATURE, S_W, V_P, mat_d3,
+                               mat_d4, mat_prepare, new_state)
 
 __all__ = ["Law", "InvariantLaw", "NeoHookean", "CubicStretch",
            "StVenantKirchhoff", "LinearIsotropic", "invariant_law_from_sympy",
@@ -74,19 +74,20 @@ class Law:
         """
         A = np.ascontiguousarray(A, dtype=np.float64)
         st = new_state()
-        status = mat_prepare(self.kind, self.psi, self.params, A, st)
+        status = mat_prepare(self.kind, self.psi, self.params, A, *st)
         if status == 1:
             raise ValueError(f"{self!r}: det A = {np.linalg.det(A):g} <= 0 (inverted)")
         if status == 2:
             raise ValueError(f"{self!r}: non-finite energy derivatives at A")
-        out = [st[0][0], st[7].reshape(3, 3).copy(), st[8].copy()]
+        mv, mm, mp, mi = st
+        out = [mp[S_W], mv[V_P].reshape(3, 3).copy(), mm[M_AA].copy()]
         if order >= 3:
             m3 = np.zeros((9, 9))
-            mat_d3(st, np.ascontiguousarray(c, dtype=np.float64).reshape(9), m3)
+            mat_d3(*st, np.ascontiguousarray(c, dtype=np.float64).reshape(9), m3)
             out.append(m3)
         if order >= 4:
             m4 = np.zeros((9, 9))
-            mat_d4(st, np.ascontiguousarray(c, dtype=np.float64).reshape(9),
+            mat_d4(*st, np.ascontiguousarray(c, dtype=np.float64).reshape(9),
                    np.ascontiguousarray(d, dtype=np.float64).reshape(9), 1.0, m4)
             out.append(m4)
         return tuple(out)

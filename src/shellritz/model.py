@@ -103,9 +103,9 @@ def reference_geometry(ref):
     """
     from .kernels.point import _reference_geometry
     ref = _arr(ref, (15,))
-    E, Lam, dgup, na, kap = (np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((2, 2, 3)),
-                             np.zeros((2, 3)), np.zeros((3, 3)))
-    H, K, ok = _reference_geometry(ref, E, Lam, dgup, na, kap)
+    E, Lam, dgup, na, kap, gup = (np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((2, 2, 3)),
+                                  np.zeros((2, 3)), np.zeros((3, 3)), np.zeros((2, 3)))
+    H, K, ok = _reference_geometry(ref, E, Lam, dgup, na, kap, gup)
     if not ok:
         raise ShellError("degenerate reference tangents (R_1 x R_2 = 0)")
     return H, K, E[:, 2].copy()

@@ -24,13 +24,19 @@ with the exact multilinear forms of the three invariants (``I1`` quadratic,
 ``KIND_LINEAR``: the linear isotropic law of the paper (eq:Ww),
 ``W = lambda/2 (tr H)^2 + mu |sym H|^2`` with ``H = A - I``: constant tangent,
 zero third and fourth derivatives.
+
+State layout
+------------
+One evaluation lives in four arrays ``(mv, mm, mp, mi)`` (few arguments keep
+Numba calls cheap): ``mv`` rows are 9-vectors (V_*), ``mm`` the 9x9 matrices
+(the invariant Hessians Q_a and AA), ``mp`` scalars (S_*), ``mi`` the ids of
+the active invariants (0: I1, 1: I2, 2: J; I1 is always first, J last).
 """
 
 import numpy as np
 from numba import njit, types
 from numba.extending import intrinsic
 
-from .small import cof3
 
 KIND_INVARIANT = 0
 KIND_LINEAR = 1
@@ -106,20 +112,35 @@ def _ptr(typingctx, arr):
     return types.CPointer(arr.dtype)(arr), codegen
 
 
+
+# rows of mv
+V_A, V_C, V_P, V_G1 = 0, 1, 2, 3          # A, C = A^T A, P = dW/dA, D I1 = 2A
+V_G = 4                                    # 3 rows: D I_a (active order)
+V_QC, V_QD, V_RCD, V_U, V_RD = 7, 10, 13, 16, 19   # 3 rows each (work)
+V_ZS, V_QS = 22, 34                        # 4 pairs x 3 rows (work)
+V_PC, V_PD = 46, 47                        # one pair (mat_d4)
+N_VROW = 48
+M_AA = 3                                   # mm[0:3] = Q_a, mm[3] = AA
+# entries of mp
+S_W, S_I1, S_I2, S_J, S_NK, S_KIND = 0, 1, 2, 3, 4, 5
+S_PSI = 8
+S_P1 = S_PSI + N_PSI                       # p1[a], p2[a,b], p3, p4: psi derivatives
+S_P2 = S_P1 + 3                            # on the active invariants
+S_P3 = S_P2 + 9
+S_P4 = S_P3 + 27
+S_GC = S_P4 + 81                           # work: gam_c, gam_d, sigma, alpha (3 each)
+S_GD = S_GC + 3
+S_SIG = S_GD + 3
+S_AL = S_SIG + 3
+S_WT = S_AL + 3                            # one pair weight (mat_d4)
+N_SCAL = S_WT + 1
+
+
+@njit(cache=True)
 def new_state():
     """Arrays holding one material evaluation (see mat_prepare)."""
-    return (np.zeros(8),            # 0 scal: W, I1, I2, J, use_I2, kind
-            np.zeros((3, 3)),       # 1 A
-            np.zeros((3, 3)),       # 2 C = A^T A
-            np.zeros((3, 3)),       # 3 A A^T
-            np.zeros((3, 9)),       # 4 gI: first derivatives of invariants
-            np.zeros((3, 9, 9)),    # 5 QI: second derivatives of invariants
-            np.zeros(N_PSI),        # 6 psi, compact
-            np.zeros(9),            # 7 P
-            np.zeros((9, 9)),       # 8 AA
-            np.zeros((6, 3, 9)),    # 9 vector work (q_c, q_d, r_cd, w, z, -)
-            np.zeros((3, 3)),       # 10 cofactor work
-            np.zeros((4, 3)))       # 11 scalar work (gamma_c, gamma_d, sigma)
+    return (np.zeros((N_VROW, 9)), np.zeros((4, 9, 9)), np.zeros(N_SCAL),
+            np.zeros(3, np.int64))
 
 
 # ---------------------------------------------------------------------------
@@ -192,52 +213,46 @@ def _add_s4_vec(c, d, e, coef, out):
 
 
 @njit(cache=True)
-def _add_R(k, ms, c, coef, out):
-    """out += coef * D3 I_k[., ., c]."""
-    if coef == 0.0:
-        return
-    A = ms[1].reshape(9)
-    g = ms[4]
-    if k == 2:
-        _add_eps(c, coef, out)
-    elif k == 1:
+def _add_R(inv, A9, g1, c, out):
+    """out += D3 I[., ., c] for invariant id inv (linear in c; zero for I1)."""
+    if inv == 2:
+        _add_eps(c, 1.0, out)
+    elif inv == 1:
         # D3 I2[., ., c] = 2 (g1.c) Id + 2 c g1^T + 2 g1 c^T - D3(tr C^2)[., ., c]/2
         gc = 0.0
         for p in range(9):
-            gc += g[0, p] * c[p]
+            gc += g1[p] * c[p]
         for p in range(9):
-            out[p, p] += 2.0 * coef * gc
+            out[p, p] += 2.0 * gc
             for q in range(9):
-                out[p, q] += 2.0 * coef * (c[p] * g[0, q] + g[0, p] * c[q])
-        _add_s4(c, A, -0.5 * coef, out)
+                out[p, q] += 2.0 * (c[p] * g1[q] + g1[p] * c[q])
+        _add_s4(c, A9, -0.5, out)
 
 
 @njit(cache=True)
-def _add_R_vec(k, ms, c, d, coef, out):
-    """out += coef * D3 I_k[., c, d] (9-vector)."""
-    if coef == 0.0:
-        return
-    A = ms[1].reshape(9)
-    g = ms[4]
-    if k == 2:
-        _add_eps_vec(c, d, coef, out)
-    elif k == 1:
+def _R_vec(inv, A9, g1, c, d, out):
+    """out = D3 I[., c, d] (9-vector) for invariant id inv."""
+    for p in range(9):
+        out[p] = 0.0
+    if inv == 2:
+        _add_eps_vec(c, d, 1.0, out)
+    elif inv == 1:
         gc = 0.0
         gd = 0.0
         cd = 0.0
         for p in range(9):
-            gc += g[0, p] * c[p]
-            gd += g[0, p] * d[p]
+            gc += g1[p] * c[p]
+            gd += g1[p] * d[p]
             cd += c[p] * d[p]
         for p in range(9):
-            out[p] += 2.0 * coef * (gc * d[p] + cd * g[0, p] + gd * c[p])
-        _add_s4_vec(c, A, d, -0.5 * coef, out)
+            out[p] += 2.0 * (gc * d[p] + cd * g1[p] + gd * c[p])
+        _add_s4_vec(c, A9, d, -0.5, out)
 
 
 @njit(cache=True)
-def _add_S(k, c, d, coef, out):
-    """out += coef * D4 I_k[., ., c, d] (only I2 has a non-zero one)."""
-    if k != 1 or coef == 0.0:
+def _add_S(inv, c, d, coef, out):
+    """out += coef * D4 I[., ., c, d] (only I2 has a non-zero one)."""
+    if inv != 1 or coef == 0.0:
         return
     cd = 0.0
     for p in range(9):
@@ -249,42 +264,23 @@ def _add_S(k, c, d, coef, out):
     _add_s4(c, d, -0.5 * coef, out)
 
 
-# ---------------------------------------------------------------------------
-# psi derivatives in full (symmetric) index form
-# ---------------------------------------------------------------------------
-
-@njit(cache=True, inline="always")
-def _p1(ms, k):
-    return ms[6][1 + k]
-
-
-@njit(cache=True, inline="always")
-def _p2(ms, k, l):
-    return ms[6][_I2[k, l]]
-
-
-@njit(cache=True, inline="always")
-def _p3(ms, k, l, m):
-    return ms[6][_I3[k, l, m]]
-
-
-@njit(cache=True, inline="always")
-def _p4(ms, k, l, m, n):
-    return ms[6][_I4[k, l, m, n]]
-
-
-@njit(cache=True, inline="always")
-def _nk(ms):
-    """Invariants actually used: 3 if the law depends on I2, else I1 and J only."""
-    return 3 if ms[0][4] != 0.0 else 2
-
-
-@njit(cache=True, inline="always")
-def _inv(ms, a):
-    """Map a loop index 0..nk-1 to the invariant index (skipping I2 if unused)."""
-    if ms[0][4] != 0.0:
-        return a
-    return 0 if a == 0 else 2
+@njit(cache=True)
+def _forms(nk, mi, mv, mm, c, qc, gc):
+    """q_a = Q_a c and gam_a = g_a . c for the active invariants (Q_I1 = 2 Id)."""
+    for a in range(nk):
+        s = 0.0
+        for p in range(9):
+            s += mv[V_G + a, p] * c[p]
+        gc[a] = s
+    for p in range(9):
+        qc[0, p] = 2.0 * c[p]
+    for a in range(1, nk):
+        Q = mm[a]
+        for p in range(9):
+            t = 0.0
+            for q in range(9):
+                t += Q[p, q] * c[q]
+            qc[a, p] = t
 
 
 # ---------------------------------------------------------------------------
@@ -292,24 +288,33 @@ def _inv(ms, a):
 # ---------------------------------------------------------------------------
 
 @njit(cache=True)
-def mat_prepare(kind, psi_fn, params, A, ms):
-    """Evaluate W, P and AA at A into the state ms.
+def mat_prepare(kind, psi_fn, params, A, mv, mm, mp, mi):
+    """Evaluate W, P and AA at A (3x3) into the state (mv, mm, mp, mi).
 
     Returns 0, or 1 when det A <= 0 (inverted element), or 2 when the law
     returned a non-finite value.
     """
-    scal, As, Cm, AAt, g, Q, ps, P, AA = ms[0], ms[1], ms[2], ms[3], ms[4], ms[5], ms[6], ms[7], ms[8]
-    cof = ms[10]
+    A9 = mv[V_A]
     for i in range(3):
         for j in range(3):
-            As[i, j] = A[i, j]
-    cof3(A, cof)
-    J = A[0, 0] * cof[0, 0] + A[0, 1] * cof[0, 1] + A[0, 2] * cof[0, 2]
-    scal[3] = J
-    scal[5] = kind
+            A9[3 * i + j] = A[i, j]
+    gJ = mv[V_G + 2]             # provisional row for the cofactor
+    gJ[0] = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+    gJ[1] = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+    gJ[2] = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+    gJ[3] = A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]
+    gJ[4] = A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]
+    gJ[5] = A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]
+    gJ[6] = A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
+    gJ[7] = A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]
+    gJ[8] = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    J = A[0, 0] * gJ[0] + A[0, 1] * gJ[1] + A[0, 2] * gJ[2]
+    mp[S_J] = J
+    mp[S_KIND] = kind
     if not J > 0.0:
         return 1
-    Af = As.reshape(9)
+    P = mv[V_P]
+    AA = mm[M_AA]
     if kind == KIND_LINEAR:
         lam = params[0]
         mu = params[1]
@@ -322,7 +327,8 @@ def mat_prepare(kind, psi_fn, params, A, ms):
                 s = 0.5 * (hij + hji)
                 W += mu * s * s
                 P[3 * i + j] = lam * tr * (1.0 if i == j else 0.0) + mu * (hij + hji)
-        scal[0] = W
+        mp[S_W] = W
+        mp[S_NK] = 0
         for p in range(9):
             for q in range(9):
                 AA[p, q] = 0.0
@@ -332,234 +338,255 @@ def mat_prepare(kind, psi_fn, params, A, ms):
                 AA[3 * i + j, 3 * i + j] += mu
                 AA[3 * i + j, 3 * j + i] += mu
         return 0
-    # C = A^T A, A A^T, invariants
+    Cm = mv[V_C]
     I1 = 0.0
     for i in range(3):
         for j in range(3):
             s = 0.0
-            t = 0.0
             for k in range(3):
                 s += A[k, i] * A[k, j]
-                t += A[i, k] * A[j, k]
-            Cm[i, j] = s
-            AAt[i, j] = t
-        I1 += Cm[i, i]
+            Cm[3 * i + j] = s
+        I1 += Cm[4 * i]
     trC2 = 0.0
-    for i in range(3):
-        for j in range(3):
-            trC2 += Cm[i, j] * Cm[i, j]
+    for p in range(9):
+        trC2 += Cm[p] * Cm[p]
     I2 = 0.5 * (I1 * I1 - trC2)
-    scal[1] = I1
-    scal[2] = I2
-    psi_fn(I1, I2, J, _ptr(params), _ptr(ps))
-    use2 = 0.0
+    mp[S_I1] = I1
+    mp[S_I2] = I2
+    ps = mp[S_PSI:S_PSI + N_PSI]
+    psi_fn(I1, I2, J, _ptr(params), _ptr(mp[S_PSI:]))
+    use2 = False
     for n in range(N_PSI):
         if not np.isfinite(ps[n]):
             return 2
-    for n in range(1, N_PSI):
-        # any derivative that involves I2 (index 1)?
-        if ps[n] != 0.0 and _HAS_I2[n]:
-            use2 = 1.0
-    scal[4] = use2
-    scal[0] = ps[0]
-    # first and second derivatives of the invariants
+        if n > 0 and ps[n] != 0.0 and _HAS_I2[n]:
+            use2 = True
+    nk = 3 if use2 else 2
+    mi[0] = 0
+    mi[1] = 1 if use2 else 2
+    mi[2] = 2
+    mp[S_NK] = nk
+    mp[S_W] = ps[0]
+    for a in range(nk):
+        mp[S_P1 + a] = ps[1 + mi[a]]
+        for b in range(nk):
+            mp[S_P2 + 3 * a + b] = ps[_I2[mi[a], mi[b]]]
+            for c in range(nk):
+                mp[S_P3 + 9 * a + 3 * b + c] = ps[_I3[mi[a], mi[b], mi[c]]]
+                for d in range(nk):
+                    mp[S_P4 + 27 * a + 9 * b + 3 * c + d] = ps[_I4[mi[a], mi[b], mi[c], mi[d]]]
+    # first and second derivatives of the invariants (active order)
+    g1 = mv[V_G1]
+    jJ = nk - 1
     for p in range(9):
-        g[0, p] = 2.0 * Af[p]
-        g[2, p] = cof[p // 3, p % 3]
+        g1[p] = 2.0 * A9[p]
+        mv[V_G, p] = g1[p]
+        mv[V_G + jJ, p] = gJ[p]
+    QJ = mm[jJ]
+    for p in range(9):
         for q in range(9):
-            Q[0, p, q] = 0.0
-            Q[1, p, q] = 0.0
-            Q[2, p, q] = 0.0
-        Q[0, p, p] = 2.0
-    _add_eps(Af, 1.0, Q[2])
-    if use2 != 0.0:
-        # I2 = (I1^2 - tr C^2)/2: D I2 = I1 D I1 - (1/2) 4 A C
+            QJ[p, q] = 0.0
+    _add_eps(A9, 1.0, QJ)
+    if use2:
+        # I2 = (I1^2 - tr C^2)/2: D I2 = I1 D I1 - 2 A C ; D2 I2 = g1 g1^T + 2 I1 Id - D2(tr C^2)/2
+        Q2 = mm[1]
         for i in range(3):
             for L in range(3):
                 acl = 0.0
                 for K in range(3):
-                    acl += A[i, K] * Cm[K, L]
-                g[1, 3 * i + L] = I1 * g[0, 3 * i + L] - 2.0 * acl
+                    acl += A[i, K] * Cm[3 * K + L]
+                mv[V_G + 1, 3 * i + L] = I1 * g1[3 * i + L] - 2.0 * acl
         for p in range(9):
-            Q[1, p, p] += 2.0 * I1
             for q in range(9):
-                Q[1, p, q] += g[0, p] * g[0, q]
-        _add_s4(Af, Af, -0.25, Q[1])
-    # P = sum psi_k g_k ; AA = sum psi_k Q_k + sum psi_kl g_k g_l^T
-    nk = _nk(ms)
+                Q2[p, q] = g1[p] * g1[q]
+            Q2[p, p] += 2.0 * I1
+        _add_s4(A9, A9, -0.25, Q2)
     for p in range(9):
         s = 0.0
         for a in range(nk):
-            k = _inv(ms, a)
-            s += _p1(ms, k) * g[k, p]
+            s += mp[S_P1 + a] * mv[V_G + a, p]
         P[p] = s
-    for p in range(9):
-        for q in range(9):
-            s = 0.0
-            for a in range(nk):
-                k = _inv(ms, a)
-                s += _p1(ms, k) * Q[k, p, q]
-                for b in range(nk):
-                    l = _inv(ms, b)
-                    s += _p2(ms, k, l) * g[k, p] * g[l, q]
-            AA[p, q] = s
+    mat_combination(mv, mm, mp, mi, 1.0, A9, False, mv[0:0], mv[0:0], mp[0:0], AA)
     return 0
 
 
 @njit(cache=True)
-def _rank2_sym(u, v, coef, out):
-    """out += coef * (u v^T + v u^T)."""
-    for p in range(9):
-        cu = coef * u[p]
-        cv = coef * v[p]
-        for q in range(9):
-            out[p, q] += cu * v[q] + cv * u[q]
+def mat_combination(mv, mm, mp, mi, cAA, c3, with_c3, C, Dd, wts, out):
+    """out = cAA AA + D3W[., ., c3] (if with_c3) + sum_p wts[p] D4W[., ., C[p], Dd[p]].
 
+    One pass of Faa di Bruno over the active invariants: with the invariant
+    forms g_a = D I_a, Q_a = D2 I_a, R_a(c) = D3 I_a[., ., c],
+    r_a = D3 I_a[., c, d], S_a = D4 I_a[., ., c, d], gam = g.c, q = Q c,
+    sig_a = c.Q_a d and the psi derivatives p1..p4 (symmetric),
 
-@njit(cache=True)
-def mat_d3(ms, c, out):
-    """out = D^3 W[., ., c] (9x9). Requires mat_prepare on the same A."""
-    for p in range(9):
-        for q in range(9):
-            out[p, q] = 0.0
-    if ms[0][5] == KIND_LINEAR:
-        return
-    g, Q = ms[4], ms[5]
-    qc = ms[9][0]
-    w = ms[9][3]
-    nk = _nk(ms)
-    gam = ms[11][0]
-    for a in range(nk):
-        k = _inv(ms, a)
-        s = 0.0
+      AA      = sum p1_a Q_a + sum p2_ab g_a g_b^T
+      D3(c)   = sum p1_a R_a(c) + sum p2_ab [gam_b Q_a + q_a g_b^T + g_b q_a^T]
+                + sum p3_abm gam_m g_a g_b^T
+      D4(c,d) = sum p4_abmn gc_m gd_n g_a g_b^T
+                + sum p3_abm [gc_b gd_m Q_a + gd_m (qc_a g_b^T + g_b qc_a^T)
+                              + gc_m (qd_a g_b^T + g_b qd_a^T) + sig_a g_b g_m^T]
+                + sum p2_ab [sig_b Q_a + qc_a qd_b^T + qd_a qc_b^T
+                             + gd_b R_a(c) + gc_b R_a(d) + r_a g_b^T + g_b r_a^T]
+                + sum p1_a S_a(c, d)
+
+    all of the form  sum_a alpha_a Q_a + sum_a (u_a g_a^T + g_a u_a^T)
+    + sum_pairs,b (z_b qd_b^T + qd_b z_b^T) + sum_a R_a(Rdir_a) + S terms,
+    which are accumulated and written once.
+    """
+    if mp[S_KIND] == KIND_LINEAR:   # constant tangent: D3 = D4 = 0
         for p in range(9):
-            s += g[k, p] * c[p]
-            t = 0.0
             for q in range(9):
-                t += Q[k, p, q] * c[q]
-            qc[k, p] = t
-        gam[k] = s
+                out[p, q] = cAA * mm[M_AA, p, q]
+        return
+    nk = int(mp[S_NK])
+    g = mv[V_G:V_G + 3]
+    qc, qd, rcd = mv[V_QC:V_QC + 3], mv[V_QD:V_QD + 3], mv[V_RCD:V_RCD + 3]
+    u, Rdir = mv[V_U:V_U + 3], mv[V_RD:V_RD + 3]
+    gc, gd = mp[S_GC:S_GC + 3], mp[S_GD:S_GD + 3]
+    sig, alpha = mp[S_SIG:S_SIG + 3], mp[S_AL:S_AL + 3]
+    A9, g1 = mv[V_A], mv[V_G1]
+    npair = wts.shape[0]
     for a in range(nk):
-        k = _inv(ms, a)
-        # sum_k psi_k R_k(c)
-        _add_R(k, ms, c, _p1(ms, k), out)
-        # alpha_k Q_k, alpha_k = sum_l psi_kl gamma_l
-        alpha = 0.0
-        for b in range(nk):
-            alpha += _p2(ms, k, _inv(ms, b)) * gam[_inv(ms, b)]
-        if alpha != 0.0:
-            for p in range(9):
-                for q in range(9):
-                    out[p, q] += alpha * Q[k, p, q]
-    for b in range(nk):
-        l = _inv(ms, b)
-        # w_l = sum_k psi_kl q_k
-        nz = False
+        alpha[a] = cAA * mp[S_P1 + a]
         for p in range(9):
             s = 0.0
+            for b in range(nk):
+                s += mp[S_P2 + 3 * a + b] * g[b, p]
+            u[a, p] = 0.5 * cAA * s
+            Rdir[a, p] = 0.0
+    if with_c3:
+        _forms(nk, mi, mv, mm, c3, qc, gc)
+        for a in range(nk):
+            for b in range(nk):
+                p2 = mp[S_P2 + 3 * a + b]
+                alpha[a] += p2 * gc[b]
+                gab = 0.0
+                for m in range(nk):
+                    gab += mp[S_P3 + 9 * a + 3 * b + m] * gc[m]
+                for p in range(9):
+                    u[b, p] += p2 * qc[a, p] + 0.5 * gab * g[a, p]
+            p1 = mp[S_P1 + a]
+            for p in range(9):
+                Rdir[a, p] += p1 * c3[p]
+    for pr in range(npair):
+        w = wts[pr]
+        c = C[pr]
+        d = Dd[pr]
+        _forms(nk, mi, mv, mm, c, qc, gc)
+        _forms(nk, mi, mv, mm, d, qd, gd)
+        for a in range(nk):
+            s = 0.0
+            for p in range(9):
+                s += c[p] * qd[a, p]
+            sig[a] = s
+            _R_vec(mi[a], A9, g1, c, d, rcd[a])
+        for a in range(nk):
+            al = 0.0
+            bc = 0.0
+            bd = 0.0
+            for b in range(nk):
+                p2 = mp[S_P2 + 3 * a + b]
+                al += p2 * sig[b]
+                bc += p2 * gd[b]
+                bd += p2 * gc[b]
+                for m in range(nk):
+                    al += mp[S_P3 + 9 * a + 3 * b + m] * gc[b] * gd[m]
+            alpha[a] += w * al
+            for p in range(9):
+                Rdir[a, p] += w * (bc * c[p] + bd * d[p])
+            for b in range(nk):
+                gab = 0.0          # coefficient of g_a g_b^T: sum p4 gc gd + sum p3 sig
+                p3d = 0.0
+                p3c = 0.0
+                for m in range(nk):
+                    p3 = mp[S_P3 + 9 * a + 3 * b + m]
+                    gab += p3 * sig[m]
+                    p3d += p3 * gd[m]
+                    p3c += p3 * gc[m]
+                    for n in range(nk):
+                        gab += mp[S_P4 + 27 * a + 9 * b + 3 * m + n] * gc[m] * gd[n]
+                p2 = mp[S_P2 + 3 * a + b]
+                for p in range(9):
+                    u[b, p] += w * (0.5 * gab * g[a, p] + p3d * qc[a, p] + p3c * qd[a, p]
+                                    + p2 * rcd[a, p])
+        # z_b = w sum_a p2_ab qc_a, paired with qd_b
+        for b in range(nk):
+            zrow = mv[V_ZS + 3 * pr + b]
+            qrow = mv[V_QS + 3 * pr + b]
+            for p in range(9):
+                s = 0.0
+                for a in range(nk):
+                    s += mp[S_P2 + 3 * a + b] * qc[a, p]
+                zrow[p] = w * s
+                qrow[p] = qd[b, p]
+    for p in range(9):
+        for q in range(p, 9):
+            s = 0.0
             for a in range(nk):
-                k = _inv(ms, a)
-                s += _p2(ms, k, l) * qc[k, p]
-            w[l, p] = s
-            nz = nz or s != 0.0
-        if nz:
-            _rank2_sym(w[l], g[l], 1.0, out)
-        for a in range(b, nk):
-            k = _inv(ms, a)
-            gkl = 0.0
-            for e in range(nk):
-                m = _inv(ms, e)
-                gkl += _p3(ms, k, l, m) * gam[m]
-            if gkl != 0.0:
-                _rank2_sym(g[k], g[l], gkl if k != l else 0.5 * gkl, out)
+                s += u[a, p] * g[a, q] + g[a, p] * u[a, q]
+            for a in range(1, nk):
+                s += alpha[a] * mm[a, p, q]
+            for pr in range(npair):
+                for b in range(nk):
+                    r = 3 * pr + b
+                    s += mv[V_ZS + r, p] * mv[V_QS + r, q] + mv[V_QS + r, p] * mv[V_ZS + r, q]
+            out[p, q] = s
+            out[q, p] = s
+        out[p, p] += 2.0 * alpha[0]          # Q_I1 = 2 Id
+    for a in range(1, nk):
+        _add_R(mi[a], A9, g1, Rdir[a], out)
+    for pr in range(npair):
+        for a in range(1, nk):
+            _add_S(mi[a], C[pr], Dd[pr], wts[pr] * mp[S_P1 + a], out)
 
 
 @njit(cache=True)
-def mat_d4(ms, c, d, coef, out):
-    """out += coef * D^4 W[., ., c, d] (9x9). Requires mat_prepare."""
-    if ms[0][5] == KIND_LINEAR or coef == 0.0:
+def mat_d3(mv, mm, mp, mi, c, out):
+    """out = D3W[., ., c] (9x9). Requires mat_prepare on the same A."""
+    mat_combination(mv, mm, mp, mi, 0.0, c, True, mv[0:0], mv[0:0], mp[0:0], out)
+
+
+@njit(cache=True)
+def mat_d4(mv, mm, mp, mi, c, d, coef, out):
+    """out = coef * D4W[., ., c, d] (9x9). Requires mat_prepare."""
+    for p in range(9):
+        mv[V_PC, p] = c[p]
+        mv[V_PD, p] = d[p]
+    mp[S_WT] = coef
+    mat_combination(mv, mm, mp, mi, 0.0, c, False, mv[V_PC:V_PC + 1], mv[V_PD:V_PD + 1],
+                    mp[S_WT:S_WT + 1], out)
+
+
+@njit(cache=True)
+def mat_d3_vec(mv, mm, mp, mi, c, d, out):
+    """out = D3W[., c, d] (9-vector):
+    sum_a g_a (sum p3_abm gc_b gd_m + sum p2_ab sig_b)
+    + sum p2_ab (qc_a gd_b + qd_a gc_b) + sum p1_a r_a."""
+    for p in range(9):
+        out[p] = 0.0
+    if mp[S_KIND] == KIND_LINEAR:
         return
-    g, Q = ms[4], ms[5]
-    qc, qd, rcd, w, z = ms[9][0], ms[9][1], ms[9][2], ms[9][3], ms[9][4]
-    nk = _nk(ms)
-    gc, gd, sig = ms[11][0], ms[11][1], ms[11][2]
+    nk = int(mp[S_NK])
+    g = mv[V_G:V_G + 3]
+    qc, qd, rcd = mv[V_QC:V_QC + 3], mv[V_QD:V_QD + 3], mv[V_RCD:V_RCD + 3]
+    gc, gd, sig = mp[S_GC:S_GC + 3], mp[S_GD:S_GD + 3], mp[S_SIG:S_SIG + 3]
+    _forms(nk, mi, mv, mm, c, qc, gc)
+    _forms(nk, mi, mv, mm, d, qd, gd)
     for a in range(nk):
-        k = _inv(ms, a)
-        sc = 0.0
-        sd = 0.0
-        ss = 0.0
+        s = 0.0
         for p in range(9):
-            sc += g[k, p] * c[p]
-            sd += g[k, p] * d[p]
-            tc = 0.0
-            td = 0.0
-            for q in range(9):
-                tc += Q[k, p, q] * c[q]
-                td += Q[k, p, q] * d[q]
-            qc[k, p] = tc
-            qd[k, p] = td
-            ss += c[p] * td
-            rcd[k, p] = 0.0
-        gc[k] = sc
-        gd[k] = sd
-        sig[k] = ss
-        _add_R_vec(k, ms, c, d, 1.0, rcd[k])
+            s += c[p] * qd[a, p]
+        sig[a] = s
+        _R_vec(mi[a], mv[V_A], mv[V_G1], c, d, rcd[a])
     for a in range(nk):
-        k = _inv(ms, a)
-        # psi_k S_k(c, d)
-        _add_S(k, c, d, coef * _p1(ms, k), out)
-        # beta^c_k R_k(c) + beta^d_k R_k(d)
-        bc = 0.0
-        bd = 0.0
-        alpha = 0.0
+        coef = 0.0
         for b in range(nk):
-            l = _inv(ms, b)
-            bc += _p2(ms, k, l) * gd[l]
-            bd += _p2(ms, k, l) * gc[l]
-            alpha += _p2(ms, k, l) * sig[l]
-            for e in range(nk):
-                m = _inv(ms, e)
-                alpha += _p3(ms, k, l, m) * gc[l] * gd[m]
-        _add_R(k, ms, c, coef * bc, out)
-        _add_R(k, ms, d, coef * bd, out)
-        if alpha != 0.0:
-            for p in range(9):
-                for q in range(9):
-                    out[p, q] += coef * alpha * Q[k, p, q]
-    for b in range(nk):
-        l = _inv(ms, b)
-        nzw = False
-        nzz = False
+            coef += mp[S_P2 + 3 * a + b] * sig[b]
+            for m in range(nk):
+                coef += mp[S_P3 + 9 * a + 3 * b + m] * gc[b] * gd[m]
+        p1 = mp[S_P1 + a]
         for p in range(9):
-            sw = 0.0
-            sz = 0.0
-            for a in range(nk):
-                k = _inv(ms, a)
-                p3d = 0.0
-                p3c = 0.0
-                for e in range(nk):
-                    m = _inv(ms, e)
-                    p3d += _p3(ms, k, l, m) * gd[m]
-                    p3c += _p3(ms, k, l, m) * gc[m]
-                pkl = _p2(ms, k, l)
-                sw += p3d * qc[k, p] + p3c * qd[k, p] + pkl * rcd[k, p]
-                sz += pkl * qc[k, p]
-            w[l, p] = sw
-            z[l, p] = sz
-            nzw = nzw or sw != 0.0
-            nzz = nzz or sz != 0.0
-        if nzw:
-            _rank2_sym(w[l], g[l], coef, out)
-        if nzz:
-            _rank2_sym(z[l], qd[l], coef, out)
-        for a in range(b, nk):
-            k = _inv(ms, a)
-            gam = 0.0
-            for e in range(nk):
-                m = _inv(ms, e)
-                gam += _p3(ms, k, l, m) * sig[m]
-                for f in range(nk):
-                    n = _inv(ms, f)
-                    gam += _p4(ms, k, l, m, n) * gc[m] * gd[n]
-            if gam != 0.0:
-                _rank2_sym(g[k], g[l], coef * gam if k != l else 0.5 * coef * gam, out)
+            s = coef * g[a, p] + p1 * rcd[a, p]
+            for b in range(nk):
+                s += mp[S_P2 + 3 * a + b] * (qc[a, p] * gd[b] + qd[a, p] * gc[b])
+            out[p] += s

@@ -41,9 +41,10 @@ The load term -h qbar.r is linear in r and left to the discretization.
 """
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-from .material import mat_d3, mat_d4, mat_prepare, new_state
+from .material import (M_AA, S_W, V_P, mat_combination, mat_d3, mat_d3_vec,
+                       mat_prepare, new_state)
 from .small import chol3, chol3_solve, cross, inv3
 
 LEVEL_MEMBRANE = 0
@@ -76,12 +77,14 @@ STATUS_TEXT = {
 }
 
 NV = 15          # local variables v
+NX = 6           # of which first derivatives r_1, r_2
 NXI = 27         # xi-space: 9 blocks of 3-vectors
 Y1_BLOCK = 5     # U[:, 5] = y1, U[:, 6:8] = Y_a, U[:, 8] = y2
 
 _Y1_MAXIT = 60
 
 
+@njit(cache=True)
 def new_scratch():
     """Work arrays of one point evaluation (allocate once per thread/element)."""
     return (new_state(),            # 0 material state
@@ -90,14 +93,14 @@ def new_scratch():
             np.zeros((2, 2, 3)),    # 3 dgup[a, b] = d g^b / d theta^a (global)
             np.zeros((2, 3)),       # 4 n_{,a} (global)
             np.zeros((3, 3)),       # 5 kappa (local, zero 3rd row/col)
-            np.zeros((8, 3, 3)),    # 6 growth: G0L G1L Gi M1 N1 M_1 M_2 work
+            np.zeros((10, 3, 3)),   # 6 growth: G0L G1L Gi M1 N1 M_1 M_2 work/Q1 Q0 kappa.Gi
             np.zeros((4, 9, 3)),    # 7 CA: slot coefficients A0, A1, A1_1, A1_2
             np.zeros((3, 9)),       # 8 U
             np.zeros((4, 9)),       # 9 slot values
             np.zeros((12, 9)),      # 10 vectors: D0^k(3), D1_a^k(6), X, Xtot, work
             np.zeros((6, 3)),       # 11 small vectors
             np.zeros((3, 3, 3)),    # 12 B, chol(B), work
-            np.zeros((10, 9, 9)),   # 13 9x9: D3(A1), D3(D0^k)x3, H00, H01, H0a x2, work x2
+            np.zeros((10, 9, 9)),   # 13 9x9: D3(A1a) x2, (unused x2), H00, H01, H0a x2, work x2
             np.zeros(NXI),          # 14 dLtil/dxi
             np.zeros((9, NXI)),     # 15 dc/dxi
             np.zeros((9, NV)),      # 16 Zv = d(y1, Y1, Y2)/dv
@@ -106,7 +109,15 @@ def new_scratch():
             np.zeros((3, NV)),      # 19 d2 Ltil / dy2 dv
             np.zeros(9),            # 20 lambda (c0, c1, c2)
             np.zeros(15),           # 21 v in the local frame
-            np.zeros((6, 3)))       # 22 qbar, m, dm_1, dm_2, y1, y2 in the local frame
+            np.zeros((6, 3)),       # 22 qbar, m, dm_1, dm_2, y1, y2 in the local frame
+            np.zeros((2, 3)),       # 23 g^a (global)
+            np.zeros((4, 9, 3)),    # 24 CF: slot coefficients before G0^-1
+            np.zeros((4, 3)),       # 25 Newton work: res, trial y, step
+            np.zeros((2, 3, 3)),    # 26 3x3 work
+            np.zeros((2, 3, 9)),    # 27 D4 pairs (c, d) of the Hessian block H00
+            np.zeros(3),            # 28 D4 pair weights
+            np.zeros((2, 9, NV)),   # 29 H01^T J0, H0a^T J0
+            np.zeros((NV, NX)))     # 30 cross block of the Hessian
 
 
 # ---------------------------------------------------------------------------
@@ -114,73 +125,64 @@ def new_scratch():
 # ---------------------------------------------------------------------------
 
 @njit(cache=True)
-def _reference_geometry(ref, E, Lam, dgup, na, kap):
+def _reference_geometry(ref, E, Lam, dgup, na, kap, gup):
     """Frame, dual basis and curvature of the reference surface at the point.
 
     Derivatives of g^a and n are exact directional derivatives of their
     algebraic formulas in (R_1, R_2) along the given R_ab (DESIGN.md), so a
     discrete reference is exactly stress free.  Returns (H, K, ok).
     """
-    g = ref[0:6].reshape(2, 3)
-    Rs = np.empty((2, 2, 3))
-    for i in range(3):
-        Rs[0, 0, i] = ref[6 + i]
-        Rs[0, 1, i] = ref[9 + i]
-        Rs[1, 0, i] = ref[9 + i]
-        Rs[1, 1, i] = ref[12 + i]
-    M = np.empty((2, 2))
-    for a in range(2):
-        for b in range(2):
-            M[a, b] = g[a, 0] * g[b, 0] + g[a, 1] * g[b, 1] + g[a, 2] * g[b, 2]
-    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
-    if not det > 1e-28 * (M[0, 0] * M[1, 1]) or not np.isfinite(det):
+    m00 = ref[0] * ref[0] + ref[1] * ref[1] + ref[2] * ref[2]
+    m01 = ref[0] * ref[3] + ref[1] * ref[4] + ref[2] * ref[5]
+    m11 = ref[3] * ref[3] + ref[4] * ref[4] + ref[5] * ref[5]
+    det = m00 * m11 - m01 * m01
+    if not det > 1e-28 * (m00 * m11) or not np.isfinite(det):
         return 0.0, 0.0, False
-    Mi = np.empty((2, 2))
-    Mi[0, 0] = M[1, 1] / det
-    Mi[1, 1] = M[0, 0] / det
-    Mi[0, 1] = -M[0, 1] / det
-    Mi[1, 0] = -M[1, 0] / det
-    nn = np.empty(3)
-    cross(g[0], g[1], nn)
+    i00 = m11 / det
+    i11 = m00 / det
+    i01 = -m01 / det
     s = 1.0 / np.sqrt(det)
-    gup = np.empty((2, 3))
+    l1 = 1.0 / np.sqrt(m00)
+    n0 = (ref[1] * ref[5] - ref[2] * ref[4]) * s
+    n1 = (ref[2] * ref[3] - ref[0] * ref[5]) * s
+    n2 = (ref[0] * ref[4] - ref[1] * ref[3]) * s
     for i in range(3):
-        E[i, 2] = nn[i] * s
-        for a in range(2):
-            gup[a, i] = Mi[a, 0] * g[0, i] + Mi[a, 1] * g[1, i]
-    l1 = np.sqrt(M[0, 0])
+        gup[0, i] = i00 * ref[i] + i01 * ref[3 + i]
+        gup[1, i] = i01 * ref[i] + i11 * ref[3 + i]
+        E[i, 0] = ref[i] * l1
+    E[0, 2], E[1, 2], E[2, 2] = n0, n1, n2
+    E[0, 1] = n1 * E[2, 0] - n2 * E[1, 0]
+    E[1, 1] = n2 * E[0, 0] - n0 * E[2, 0]
+    E[2, 1] = n0 * E[1, 0] - n1 * E[0, 0]
+    # b_ab = n . R_ab (R_ab = ref[6 + 3 * (a + b) ...]); n_{,a} = -b_ac g^c
+    b00 = n0 * ref[6] + n1 * ref[7] + n2 * ref[8]
+    b01 = n0 * ref[9] + n1 * ref[10] + n2 * ref[11]
+    b11 = n0 * ref[12] + n1 * ref[13] + n2 * ref[14]
     for i in range(3):
-        E[i, 0] = g[0, i] / l1
-    e2 = np.empty(3)
-    cross(E[:, 2].copy(), E[:, 0].copy(), e2)
-    for i in range(3):
-        E[i, 1] = e2[i]
-    # b_ab = n . R_ab ; n_{,a} = -b_ac g^c
-    b = np.empty((2, 2))
+        na[0, i] = -(b00 * gup[0, i] + b01 * gup[1, i])
+        na[1, i] = -(b01 * gup[0, i] + b11 * gup[1, i])
+    # d g^b / d theta^a = d(Mi)_a g + Mi R_{.a},  d(Mi)_a = -Mi dM_a Mi,
+    # dM_a[c, d] = R_ca . g_d + g_c . R_da
     for a in range(2):
-        for c in range(2):
-            b[a, c] = E[0, 2] * Rs[a, c, 0] + E[1, 2] * Rs[a, c, 1] + E[2, 2] * Rs[a, c, 2]
-    for a in range(2):
+        o0 = 6 + 3 * a          # R_{0a}
+        o1 = 9 + 3 * a          # R_{1a}
+        d00 = 2.0 * (ref[o0] * ref[0] + ref[o0 + 1] * ref[1] + ref[o0 + 2] * ref[2])
+        d11 = 2.0 * (ref[o1] * ref[3] + ref[o1 + 1] * ref[4] + ref[o1 + 2] * ref[5])
+        d01 = (ref[o0] * ref[3] + ref[o0 + 1] * ref[4] + ref[o0 + 2] * ref[5]
+               + ref[0] * ref[o1] + ref[1] * ref[o1 + 1] + ref[2] * ref[o1 + 2])
+        # -Mi dM Mi (symmetric)
+        t00 = i00 * d00 + i01 * d01
+        t01 = i00 * d01 + i01 * d11
+        t10 = i01 * d00 + i11 * d01
+        t11 = i01 * d01 + i11 * d11
+        e00 = -(t00 * i00 + t01 * i01)
+        e01 = -(t00 * i01 + t01 * i11)
+        e11 = -(t10 * i01 + t11 * i11)
         for i in range(3):
-            na[a, i] = -(b[a, 0] * gup[0, i] + b[a, 1] * gup[1, i])
-    # d g^b / d theta^a = d(Mi)_a g + Mi R_{.a},  d(Mi)_a = -Mi dM_a Mi
-    for a in range(2):
-        dM = np.empty((2, 2))
-        for c in range(2):
-            for d in range(2):
-                dM[c, d] = 0.0
-                for i in range(3):
-                    dM[c, d] += Rs[c, a, i] * g[d, i] + g[c, i] * Rs[d, a, i]
-        dMi = np.zeros((2, 2))
-        for p in range(2):
-            for q in range(2):
-                for c in range(2):
-                    for d in range(2):
-                        dMi[p, q] -= Mi[p, c] * dM[c, d] * Mi[d, q]
-        for bb in range(2):
-            for i in range(3):
-                dgup[a, bb, i] = (dMi[bb, 0] * g[0, i] + dMi[bb, 1] * g[1, i]
-                                  + Mi[bb, 0] * Rs[0, a, i] + Mi[bb, 1] * Rs[1, a, i])
+            dgup[a, 0, i] = (e00 * ref[i] + e01 * ref[3 + i]
+                             + i00 * ref[o0 + i] + i01 * ref[o1 + i])
+            dgup[a, 1, i] = (e01 * ref[i] + e11 * ref[3 + i]
+                             + i01 * ref[o0 + i] + i11 * ref[o1 + i])
     for a in range(2):
         for J in range(2):
             Lam[a, J] = gup[a, 0] * E[0, J] + gup[a, 1] * E[1, J] + gup[a, 2] * E[2, J]
@@ -190,11 +192,8 @@ def _reference_geometry(ref, E, Lam, dgup, na, kap):
             kap[I, J] = 0.0
     for I in range(2):
         for J in range(2):
-            s = 0.0
-            for a in range(2):
-                for c in range(2):
-                    s += b[a, c] * Lam[a, I] * Lam[c, J]
-            kap[I, J] = s
+            kap[I, J] = (b00 * Lam[0, I] * Lam[0, J] + b01 * (Lam[0, I] * Lam[1, J] + Lam[1, I] * Lam[0, J])
+                         + b11 * Lam[1, I] * Lam[1, J])
     H = 0.5 * (kap[0, 0] + kap[1, 1])
     K = kap[0, 0] * kap[1, 1] - kap[0, 1] * kap[1, 0]
     return H, K, True
@@ -259,40 +258,44 @@ def _dot9(a, b):
 
 
 @njit(cache=True)
-def _slot_jacobian(C, Zv, out):
-    """out[(i,J), q] = d slot / d v_q with y2 fixed (blocks 0..4 direct, 5..7 via Zv)."""
+def _slot_jacobian(C, Zv, ncol, out):
+    """out[(i,J), q] = d slot / d v_q with y2 fixed (blocks 0..4 direct,
+    5..7 via Zv), for the first ncol columns q (the others are zero)."""
     for r in range(9):
-        for q in range(NV):
+        for q in range(ncol):
             out[r, q] = 0.0
     for i in range(3):
         for J in range(3):
             r = 3 * i + J
-            for p in range(5):
+            for p in range(ncol // 3):
                 out[r, 3 * p + i] += C[p, J]
             for p in range(3):
                 c = C[Y1_BLOCK + p, J]
                 if c != 0.0:
-                    for q in range(NV):
+                    for q in range(ncol):
                         out[r, q] += c * Zv[3 * p + i, q]
 
 
 @njit(cache=True)
-def _add_JtHJ(Ja, H, Jb, both, work, out):
-    """out += Ja^T H Jb (+ its transpose if both)."""
+def _h_j(H, Jb, nb, out):
+    """out[:, :nb] = H Jb[:, :nb] (9x9 times 9xnb)."""
     for p in range(9):
-        for q in range(NV):
+        for q in range(nb):
             s = 0.0
             for r in range(9):
                 s += H[p, r] * Jb[r, q]
-            work[p, q] = s
-    for a in range(NV):
-        for q in range(NV):
+            out[p, q] = s
+
+
+@njit(cache=True)
+def _add_jt(Ja, na, T, nb, out):
+    """out[:na, :nb] += Ja[:, :na]^T T[:, :nb]."""
+    for a in range(na):
+        for q in range(nb):
             s = 0.0
             for p in range(9):
-                s += Ja[p, a] * work[p, q]
+                s += Ja[p, a] * T[p, q]
             out[a, q] += s
-            if both:
-                out[q, a] += s
 
 
 @njit(cache=True)
@@ -329,7 +332,7 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     from the reference; results are rotated back.
     """
     E = sc[1]
-    H, K, ok = _reference_geometry(ref, E, sc[2], sc[3], sc[4], sc[5])
+    H, K, ok = _reference_geometry(ref, E, sc[2], sc[3], sc[4], sc[5], sc[23])
     if not ok:
         return np.nan, ERR_REFERENCE
     # spatial vectors to the local frame
@@ -348,10 +351,13 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     _rot(E, loc[4], y1)
     _rot(E, loc[5], y2)
     if mode >= MODE_GRADIENT:
+        tmp = sc[25][0]
         for p in range(5):
-            _rot(E, grad[3 * p:3 * p + 3].copy(), grad[3 * p:3 * p + 3])
+            for i in range(3):
+                tmp[i] = grad[3 * p + i]
+            _rot(E, tmp, grad[3 * p:3 * p + 3])
     if mode == MODE_HESSIAN:
-        blk = np.empty((3, 3))
+        blk = sc[26][0]
         for p in range(5):
             for q in range(5):
                 for i in range(3):
@@ -385,7 +391,7 @@ def _rot(E, x, out):
 def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
                   qbar, m, dm, y1, y2, grad, hess, sc):
     """point_kernel with every vector in the local frame (see point_kernel)."""
-    ms = sc[0]
+    mv, mm, mp, mi = sc[0]
     E, Lam, dgup, na, kap, gr = sc[1], sc[2], sc[3], sc[4], sc[5], sc[6]
     CA, U, S, vec, sv, B3 = sc[7], sc[8], sc[9], sc[10], sc[11], sc[12]
     M9 = sc[13]
@@ -420,7 +426,11 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     cW = h * g0 * (1.0 + cK * h * h * K / 12.0) + cB * (2.0 * t2 - 4.0 * cH * H * t1)
 
     # ---- slot coefficient matrices (9 blocks x 3 local columns) ----------
-    CF = np.zeros((4, 9, 3))
+    CF = sc[24]
+    for s_ in range(4):
+        for p in range(9):
+            for J in range(3):
+                CF[s_, p, J] = 0.0
     for a in range(2):
         for J in range(2):
             CF[0, a, J] = Lam[a, J]
@@ -490,12 +500,13 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         # orient with the reference normal: same sign as (R_1 x R_2).(r_1 x r_2)
         for i in range(3):
             y1[i] = ff[i] / nf * G0L[2, 2]
-    status = _solve_y1(kind, psi, params, g0, m, CA[0], U, y1, D0, S[0], ms, B, LB, sv[3])
+    status = _solve_y1(kind, psi, params, g0, m, CA[0], U, y1, D0, S[0], mv, mm, mp, mi,
+                       B, LB, sc[25], sc[26][1])
     if status != OK:
         return nan, status
-    W = ms[0][0]
-    P = ms[7]
-    AA = ms[8]
+    W = mp[S_W]
+    P = mv[V_P]
+    AA = mm[M_AA]
 
     if not bend:
         L = cW * W - h * (m[0] * y1[0] + m[1] * y1[1] + m[2] * y1[2])
@@ -539,9 +550,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     A0, A1 = S[0], S[1]
 
     # X = A1 Q1 + A0 Q0 (all directions along which DW is taken linearly)
-    Q1 = gr[7]
-    Q0 = np.empty((3, 3))
-    Kk = np.empty((3, 3))
+    Q1, Q0, Kk = gr[7], gr[8], gr[9]
     _mm(kap, Gi, Kk)             # kappa Gi
     for I in range(3):
         for J in range(3):
@@ -565,10 +574,6 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         return L, OK
 
     # ---- gradient: multipliers of (c0, c1, c2) --------------------------
-    d3A1, d3D0 = M9[0], M9[1:4]
-    mat_d3(ms, A1, d3A1)
-    for k in range(3):
-        mat_d3(ms, D0[k], d3D0[k])
     Lx, cx, lam = sc[14], sc[15], sc[20]
     for q in range(NXI):
         Lx[q] = 0.0
@@ -577,7 +582,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     gA = vec[10]
     # dLtil/dA0 = cW P + AA X + cB D3(A1) A1 + P Q0^T
     _matvec9(AA, X, gA)
-    _matvec9(d3A1, A1, tmp)
+    mat_d3_vec(mv, mm, mp, mi, A1, A1, tmp)
     for i in range(3):
         for L_ in range(3):
             pq = P[3 * i] * Q0[L_, 0] + P[3 * i + 1] * Q0[L_, 1] + P[3 * i + 2] * Q0[L_, 2]
@@ -593,13 +598,16 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for i in range(3):
         Lx[3 * Y1_BLOCK + i] -= h * m[i]
         Lx[3 * 8 + i] -= cq * h ** 3 / 12.0 * qbar[i]
-    # constraint Jacobians
+    # constraint Jacobians; D3W[., A1a, D0^k] = D3(A1a) D0^k
+    d3a = M9[0:2]
+    for a in range(2):
+        mat_d3(mv, mm, mp, mi, S[2 + a], d3a[a])
     for k in range(3):
         _matvec9(AA, D0[k], tmp)
         _add_to_xi(tmp, CA[0], g0, cx[k])
         for a in range(2):
             _add_to_xi(tmp, CA[2 + a], g0, cx[3 + 3 * a + k])
-            _matvec9(d3D0[k], S[2 + a], gA)
+            _matvec9(d3a[a], D0[k], gA)
             for p in range(9):
                 gA[p] += t1a[a] * tmp[p]
             _add_to_xi(gA, CA[0], g0, cx[3 + 3 * a + k])
@@ -660,25 +668,29 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
                 la = lam[3 + 3 * a + k]
                 Xt[p] += g0 * la * (t1a[a] * D0[k, p] + D1[3 * a + k, p])
     H00, H01, H0a, work = M9[4], M9[5], M9[6:8], M9[8]
-    mat_d3(ms, Xt, H00)
+    # H00 = cW AA + D3(Xt) + cB D4(A1, A1) + g0 sum_a D4(A1a, Dla)
+    pc, pd, pw = sc[27][0], sc[27][1], sc[28]
+    for p in range(9):
+        pc[0, p] = A1[p]
+        pd[0, p] = A1[p]
+        for a in range(2):
+            pc[1 + a, p] = S[2 + a][p]
+            s = 0.0
+            for k in range(3):
+                s += lam[3 + 3 * a + k] * D0[k, p]
+            pd[1 + a, p] = s                      # Dla = lam_a (x) Gi[2, :]
+    pw[0] = cB
+    pw[1] = g0
+    pw[2] = g0
+    mat_combination(mv, mm, mp, mi, cW, Xt, True, pc, pd, pw, H00)
+    mat_d3(mv, mm, mp, mi, A1, H01)
+    for a in range(2):
+        mat_d3(mv, mm, mp, mi, pd[1 + a], H0a[a])
     for p in range(9):
         for q in range(9):
-            H00[p, q] += cW * AA[p, q]
-            H01[p, q] = 2.0 * cB * d3A1[p, q]
-    mat_d4(ms, A1, A1, cB, H00)
-    Dla = gA
-    for a in range(2):
-        for p in range(9):
-            Dla[p] = 0.0
-            for k in range(3):
-                Dla[p] += lam[3 + 3 * a + k] * D0[k, p]
-        mat_d4(ms, S[2 + a], Dla, g0, H00)
-        for p in range(9):
-            for q in range(9):
-                s = 0.0
-                for k in range(3):
-                    s += lam[3 + 3 * a + k] * d3D0[k][p, q]
-                H0a[a][p, q] = g0 * s
+            H01[p, q] *= 2.0 * cB
+            H0a[0][p, q] *= g0
+            H0a[1][p, q] *= g0
     if cK != 0.0:   # AA R0 + R0^T AA (X depends on A0 through Q0)
         _right_map(AA, Q0, work)
         for p in range(9):
@@ -688,34 +700,50 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for p in range(9):
         for q in range(9):
             H01[p, q] += work[p, q]
-    # slot Jacobians with y2 fixed, then P^T Hess P with y2 condensed
+    # slot Jacobians with y2 fixed, then P^T Hess P with y2 condensed.
+    # A0 depends on r_1, r_2 and y1(r_1, r_2) only: J0 has NX non-zero columns.
     Js = sc[17]
-    for s in range(4):
-        _slot_jacobian(CA[s], Zv, Js[s])
-    wJ = sc[18]
+    _slot_jacobian(CA[0], Zv, NX, Js[0])
+    for s in range(1, 4):
+        _slot_jacobian(CA[s], Zv, NV, Js[s])
+    T, W01, Wa = sc[18], sc[29][0], sc[29][1]
     for a in range(NV):
         for b in range(NV):
             hess[a, b] = 0.0
-    _add_JtHJ(Js[0], H00, Js[0], False, wJ, hess)
-    _add_JtHJ(Js[0], H01, Js[1], True, wJ, hess)
+    _h_j(H00, Js[0], NX, T)
+    _add_jt(Js[0], NX, T, NX, hess)
+    # cross blocks: M = J1^T (H01^T J0) + sum_a Ja^T (H0a^T J0), added as M and M^T
+    for p in range(9):
+        for q in range(p + 1, 9):
+            H01[p, q], H01[q, p] = H01[q, p], H01[p, q]
+            for a in range(2):
+                H0a[a][p, q], H0a[a][q, p] = H0a[a][q, p], H0a[a][p, q]
+    _h_j(H01, Js[0], NX, W01)
+    Mx = sc[30]
+    for a in range(NV):
+        for q in range(NX):
+            Mx[a, q] = 0.0
+    _add_jt(Js[1], NV, W01, NX, Mx)
+    for a in range(2):
+        _h_j(H0a[a], Js[0], NX, Wa)
+        _add_jt(Js[2 + a], NV, Wa, NX, Mx)
+    for a in range(NV):
+        for q in range(NX):
+            hess[a, q] += Mx[a, q]
+            hess[q, a] += Mx[a, q]
     for p in range(9):
         for q in range(9):
             work[p, q] = 2.0 * cB * AA[p, q]
-    _add_JtHJ(Js[1], work, Js[1], False, wJ, hess)
-    for a in range(2):
-        _add_JtHJ(Js[0], H0a[a], Js[2 + a], True, wJ, hess)
-    # d2/dy2 dv = D0^k . (H10 J0 + H11 J1); d2/dy2^2 = 2 cB B / g0
+    _h_j(work, Js[1], NV, T)
+    _add_jt(Js[1], NV, T, NV, hess)
+    # d2/dy2 dv = D0^k . (H10 J0 + H11 J1) = D0^k . (W01 + T); d2/dy2^2 = 2 cB B / g0
     Ly = sc[19]
     for k in range(3):
         for q in range(NV):
             s = 0.0
-            for p in range(9):
-                dk = D0[k, p]
-                if dk != 0.0:
-                    t = 0.0
-                    for r in range(9):
-                        t += H01[r, p] * Js[0][r, q] + work[p, r] * Js[1][r, q]
-                    s += dk * t
+            for J in range(3):
+                p = 3 * k + J
+                s += D0[k, p] * (T[p, q] + (W01[p, q] if q < NX else 0.0))
             Ly[k, q] = s
     f = g0 / (2.0 * cB)
     for q in range(NV):
@@ -728,10 +756,9 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
 
 
 @njit(cache=True)
-def _y1_residual(g0, m, y, D0, ms, res, B):
+def _y1_residual(g0, m, y, D0, W, P, AA, res, B):
     """Residual c0 = P n - m, its Jacobian B (acoustic tensor), and the merit
     phi = g0 W - m.y whose minimizer over y is the root."""
-    P, AA = ms[7], ms[8]
     rn = 0.0
     for k in range(3):
         res[k] = g0 * _dot9(P, D0[k]) - m[k]
@@ -743,24 +770,22 @@ def _y1_residual(g0, m, y, D0, ms, res, B):
                     s += D0[k, p] * (AA[p, 3 * l] * D0[l, 3 * l] + AA[p, 3 * l + 1] * D0[l, 3 * l + 1]
                                      + AA[p, 3 * l + 2] * D0[l, 3 * l + 2])
             B[k, l] = g0 * s
-    return g0 * ms[0][0] - (m[0] * y[0] + m[1] * y[1] + m[2] * y[2]), rn
+    return g0 * W - (m[0] * y[0] + m[1] * y[1] + m[2] * y[2]), rn
 
 
 @njit(cache=True)
-def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, ms, B, LB, step):
+def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, mi, B, LB, work, Bs):
     """Newton with backtracking for P(F0) n = m, i.e. the minimum over y1 of
     g0 W(A0) - m.y1 (convex along the rank-one family F_t + y1 (x) n).
     On return (OK) the material state, B and chol(B) belong to the root."""
     for i in range(3):
         U[i, Y1_BLOCK] = y1[i]
     _slot(U, CA0, A0)
-    st = mat_prepare(kind, psi, params, A0.reshape(3, 3), ms)
+    st = mat_prepare(kind, psi, params, A0.reshape(3, 3), mv, mm, mp, mi)
     if st != 0:
         return ERR_INVERTED if st == 1 else ERR_LAW
-    res = np.empty(3)
-    ytry = np.empty(3)
-    Bs = np.empty((3, 3))
-    phi, rn = _y1_residual(g0, m, y1, D0, ms, res, B)
+    res, ytry, step = work[0], work[1], work[2]
+    phi, rn = _y1_residual(g0, m, y1, D0, mp[S_W], mv[V_P], mm[M_AA], res, B)
     for it in range(_Y1_MAXIT):
         shifted = not chol3(B, LB)
         if shifted:
@@ -783,6 +808,8 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, ms, B, LB, step):
             slope += res[k] * step[k]
             ynorm += y1[k] * y1[k]
             snorm += step[k] * step[k]
+        if not shifted and snorm <= 1e-28 * ynorm:
+            return OK         # already the root to round-off (warm start)
         # quadratic convergence: this step is the last
         polish = not shifted and snorm <= 1e-20 * ynorm
         alpha = 1.0
@@ -792,11 +819,11 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, ms, B, LB, step):
                 ytry[i] = y1[i] + alpha * step[i]
                 U[i, Y1_BLOCK] = ytry[i]
             _slot(U, CA0, A0)
-            st = mat_prepare(kind, psi, params, A0.reshape(3, 3), ms)
+            st = mat_prepare(kind, psi, params, A0.reshape(3, 3), mv, mm, mp, mi)
             if st == 2:
                 return ERR_LAW
             if st == 0:
-                phin, rnn = _y1_residual(g0, m, ytry, D0, ms, res, B)
+                phin, rnn = _y1_residual(g0, m, ytry, D0, mp[S_W], mv[V_P], mm[M_AA], res, B)
                 if polish or phin <= phi + 1e-4 * alpha * slope or rnn < rn:
                     accepted = True
                     break
@@ -834,7 +861,7 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, LB, grad, hess, sc):
         _matvec9(AA, D0[k], tmp)
         _add_to_xi(tmp, CA0, g0, cx[k])
     Zv = sc[16]
-    rhs = np.empty(3)
+    rhs = sc[25][3]
     for q in range(NV):
         for k in range(3):
             rhs[k] = -cx[k, q]
@@ -842,7 +869,7 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, LB, grad, hess, sc):
         for k in range(3):
             Zv[k, q] = rhs[k]
     Js = sc[17]
-    _slot_jacobian(CA0, Zv, Js[0])
+    _slot_jacobian(CA0, Zv, NX, Js[0])
     H = sc[13][4]
     for p in range(9):
         for q in range(9):
@@ -850,4 +877,22 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, LB, grad, hess, sc):
     for a in range(NV):
         for b in range(NV):
             hess[a, b] = 0.0
-    _add_JtHJ(Js[0], H, Js[0], False, sc[18], hess)
+    _h_j(H, Js[0], NX, sc[18])
+    _add_jt(Js[0], NX, sc[18], NX, hess)
+
+
+@njit(cache=True, parallel=True)
+def evaluate_points(mode, level, kind, psi, params, h, V, REF, G0, G1, dG0, QBAR, M, DM,
+                    Y1, Y2, L, GRAD, HESS, STATUS):
+    """point_kernel over N independent points (rows of the arrays), in parallel.
+
+    Y1 is the warm start (rows of zeros: none) and receives the directors.
+    """
+    n = V.shape[0]
+    nchunk = min(n, 256)      # independent of the thread count
+    for c in prange(nchunk):
+        sc = new_scratch()
+        for i in range(c * n // nchunk, (c + 1) * n // nchunk):
+            L[i], STATUS[i] = point_kernel(mode, level, kind, psi, params, h, V[i], REF[i],
+                                           G0[i], G1[i], dG0[i], QBAR[i], M[i], DM[i],
+                                           Y1[i], Y2[i], GRAD[i], HESS[i], sc)
