@@ -76,6 +76,36 @@ def compile_time():
     return float(cold[1]), float(warm[1]), float(warm[0])
 
 
+def material_profile(law, repeats, n=20000):
+    """Micro-timings (us) of the material-layer building blocks at one point."""
+    import numba
+    from shellritz.kernels.material import (mat_combination, mat_d3, mat_d3_vec,
+                                            mat_prepare, new_state)
+
+    @numba.njit
+    def loop(n, what, kind, psi, params, A, mv, mm, mp, mi, c, C, D, w, out, v9):
+        for _ in range(n):
+            if what == 0:
+                mat_prepare(kind, psi, params, A, mv, mm, mp, mi)
+            elif what == 1:
+                mat_d3(mv, mm, mp, mi, c, out)
+            elif what == 2:
+                mat_d3_vec(mv, mm, mp, mi, c, C[0], v9)
+            else:
+                mat_combination(mv, mm, mp, mi, 1.0, c, True, C, D, w, out)
+
+    rng = np.random.default_rng(1)
+    A = np.eye(3) + 0.1 * rng.standard_normal((3, 3))
+    st = new_state()
+    args = (law.kind, law.psi, law.params, A, *st, rng.standard_normal(9),
+            rng.standard_normal((3, 9)), rng.standard_normal((3, 9)), np.ones(3),
+            np.zeros((9, 9)), np.zeros(9))
+    loop(1, 0, *args)
+    names = ["prepare (W, P, AA)", "D3 block 9x9", "D3 vector", "AA + D3 + 3 x D4 block"]
+    return {name: 1e6 * median_time(lambda: loop(n, k, *args), repeats) / n
+            for k, name in enumerate(names)}
+
+
 def median_time(fn, repeats):
     ts = []
     for _ in range(repeats):
@@ -124,6 +154,7 @@ def main():
         out["Y1"][:] = 0.0
         run(0, 2, law, pts, out)
     res["cold_start_energy_1thread_pts_per_s"] = n / median_time(cold, args.repeats)
+    res["material_profile_us"] = material_profile(law, args.repeats)
     numba.set_num_threads(2)
     for name in modes.values():
         res[f"{name}_pts_per_s"] = res["threads"]["2"][f"{name}_pts_per_s"]
