@@ -1,0 +1,599 @@
+"""The general shell: DKT triangles on any triangulated surface.
+
+Example
+-------
+>>> mesh = Mesh.read("meshes/disc.obj")
+>>> shell = Shell(mesh, thickness=0.02, material=NeoHookean(1.0, nu=0.4))
+>>> shell.set_growth(G0=..., G1=...)          # growth F = A G, G(Z) = G0 + Z G1
+>>> shell.clamp(mesh.nodes_where(lambda X: X[:, 0] < -0.99))
+>>> result = shell.solve(steps=10)
+>>> result.save("grown.vtu")
+
+Units are the user's: lengths (mesh, thickness, loads per length/area) and
+stresses (moduli, tractions) in one consistent system.  Growth tensors are
+dimensionless, in global Cartesian components; ``G1`` has units 1/length.
+The continuation parameter t in [0, 1] ramps the growth
+(``G(t) = I + t (G - I)``, unless a function of t is given), the loads
+(``t * load``) and prescribed motions.
+"""
+
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .discretize.dkt import rule
+from .kernels.assembly import assemble_dkt, scatter_gradient, scatter_hessian
+from .kernels.point import STATUS_TEXT
+from .materials import Law
+from .mesh import Mesh, MeshError
+from .model import check_thickness, level_id
+from .solve import EvaluationError, NewtonOptions, SolveError, continuation
+
+__all__ = ["Shell", "Result"]
+
+
+def _nodes(nodes, n):
+    idx = np.unique(np.asarray(nodes, dtype=np.int64).ravel())
+    if len(idx) and (idx.min() < 0 or idx.max() >= n):
+        raise ValueError(f"node indices outside 0..{n - 1}: {idx[(idx < 0) | (idx >= n)][:8]}")
+    return idx
+
+
+def _rotvec_to_matrix(w):
+    th = np.linalg.norm(w)
+    if th < 1e-300:
+        return np.eye(3)
+    k = w / th
+    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(th) * Kx + (1 - np.cos(th)) * Kx @ Kx
+
+
+def _field(value, n, shape, name):
+    """Constant, nodal array or callable(X, N) -> nodal array."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape == shape:
+        return np.broadcast_to(a, (n,) + shape).copy()
+    if a.shape == (n,) + shape:
+        return a.copy()
+    raise ValueError(f"{name}: expected shape {shape} or {(n,) + shape}, got {a.shape}")
+
+
+class Shell:
+    """A thin shell on a triangulated reference surface (DKT discretization).
+
+    Parameters
+    ----------
+    mesh : Mesh (reference middle surface)
+    thickness : h (length)
+    material : a materials.Law
+    level : "membrane" | "bending" | "consistent" (MODEL.md section 4)
+    quadrature : points of the triangle rule (default 6, see README)
+    """
+
+    def __init__(self, mesh, thickness, material, level="consistent", quadrature=6):
+        if not isinstance(mesh, Mesh):
+            raise TypeError("mesh must be a shellritz.Mesh")
+        if not isinstance(material, Law):
+            raise TypeError("material must be a shellritz material law")
+        self.mesh = mesh
+        self.h = check_thickness(thickness)
+        self.law = material
+        self.level = level
+        self._level = level_id(level)
+        self.bary, self.wts = rule(quadrature)
+        n = mesh.n_nodes
+        self.X = mesh.vertices
+        self.frames = mesh.frames.copy()
+        # growth: G(t) from (G0, G1) by a linear ramp, or a user function of t
+        self._G0 = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        self._G1 = np.zeros((n, 3, 3))
+        self._growth_fn = None
+        # boundary conditions: list of (node, slot, comp) masks with values(t)
+        self._fixed_user = np.zeros((n, 3, 3), bool)
+        self._bc = []          # (mask, values(t, U)) applied in order
+        self._frame_plane = {}  # node -> symmetry plane axes (frames)
+        self._symmetry = []       # (nodes, axis, value)
+        self._frame_tangent = {}  # node -> boundary tangent (simply supported)
+        # loads at t = 1
+        self._f_nodes = np.zeros((n, 3))
+        self._q_plus = np.zeros((n, 3))
+        self._q_minus = np.zeros((n, 3))
+        self._pressure = 0.0
+        self._prepared = False
+
+    # ------------------------------------------------------------------ growth
+    def set_growth(self, G0=None, G1=None, function=None):
+        """Growth G(Z) = G0 + Z G1 at t = 1 (constant 3x3, nodal (n,3,3), or
+        callable(X, N) -> nodal arrays); ramped as G0(t) = I + t (G0 - I),
+        G1(t) = t G1.  Or ``function(t) -> (G0, G1)`` nodal arrays for any path.
+        """
+        n = self.mesh.n_nodes
+        if function is not None:
+            if G0 is not None or G1 is not None:
+                raise ValueError("give either G0/G1 or function, not both")
+            self._growth_fn = function
+            G0_1, G1_1 = function(1.0)
+            self._check_growth(np.asarray(G0_1), np.asarray(G1_1))
+            return self
+        if callable(G0):
+            G0 = G0(self.X, self.mesh.normals)
+        if callable(G1):
+            G1 = G1(self.X, self.mesh.normals)
+        if G0 is not None:
+            self._G0 = _field(G0, n, (3, 3), "G0")
+        if G1 is not None:
+            self._G1 = _field(G1, n, (3, 3), "G1")
+        self._check_growth(self._G0, self._G1)
+        return self
+
+    def _check_growth(self, G0, G1):
+        if G0.shape != (self.mesh.n_nodes, 3, 3) or G1.shape != (self.mesh.n_nodes, 3, 3):
+            raise ValueError("growth arrays must have shape (n_nodes, 3, 3)")
+        for name, G in (("G0", G0), ("G1", G1)):
+            bad = np.where(~np.all(np.isfinite(G), axis=(1, 2)))[0]
+            if len(bad):
+                raise ValueError(f"{name}: non-finite growth at nodes {bad[:8].tolist()}")
+        det = np.linalg.det(G0)
+        bad = np.where(det <= 0)[0]
+        if len(bad):
+            raise ValueError(f"G0: det G0 <= 0 at nodes {bad[:8].tolist()} (det = {det[bad[0]]:g})")
+        Gmax = np.abs(G1).max() * self.h
+        if Gmax > 0.5 * np.abs(G0).min(initial=np.inf, where=np.abs(G0) > 0):
+            warnings.warn(f"|h G1| = {Gmax:.3g} is not small against G0: through-thickness growth "
+                          "gradients should be O(1/length) with h G1 << G0 (MODEL.md section 8)",
+                          stacklevel=3)
+
+    def growth_at(self, t):
+        if self._growth_fn is not None:
+            G0, G1 = self._growth_fn(t)
+            return (np.ascontiguousarray(G0, dtype=np.float64),
+                    np.ascontiguousarray(G1, dtype=np.float64))
+        I = np.eye(3)
+        return I + t * (self._G0 - I), t * self._G1
+
+    # --------------------------------------------------------- boundary conditions
+    def _add_bc(self, mask, values):
+        self._fixed_user |= mask
+        self._bc.append((mask, values))
+        self._prepared = False
+
+    def clamp(self, nodes, position=None, rotation=None):
+        """Fix positions and both tangent derivatives (a clamped edge).
+
+        ``position``: target positions (k, 3) (default: reference), reached at
+        t = 1 linearly; ``rotation``: a rotation vector (3,) (axis * angle) or
+        a function t -> 3x3 rotation applied to the reference frames.
+        """
+        return self._prescribe(nodes, position, rotation, slots=(0, 1, 2))
+
+    def pin(self, nodes, position=None):
+        """Fix positions only (a pinned support)."""
+        return self._prescribe(nodes, position, None, slots=(0,))
+
+    def rotate(self, nodes, rotation):
+        """Prescribe only the tangent derivatives: a_i = R(t) T_i (positions free)."""
+        return self._prescribe(nodes, None, rotation, slots=(1, 2))
+
+    def _prescribe(self, nodes, position, rotation, slots):
+        n = self.mesh.n_nodes
+        idx = _nodes(nodes, n)
+        X0 = self.X[idx]
+        target = X0 if position is None else np.broadcast_to(np.asarray(position, float), X0.shape)
+        if not np.all(np.isfinite(target)):
+            raise ValueError("non-finite prescribed positions")
+        if rotation is None:
+            rot = lambda t: np.eye(3)
+        elif callable(rotation):
+            rot = rotation
+        else:
+            w = np.asarray(rotation, float)
+            rot = lambda t: _rotvec_to_matrix(t * w)
+        mask = np.zeros((n, 3, 3), bool)
+        for s in slots:
+            mask[idx, s, :] = True
+
+        def values(t, U):
+            if 0 in slots:
+                U[idx, 0] = X0 + t * (target - X0)
+            R = rot(t)
+            for s in slots:
+                if s > 0:
+                    U[idx, s] = self.frames[idx, :, s - 1] @ R.T
+        self._add_bc(mask, values)
+        return self
+
+    def simply_support(self, nodes):
+        """Hinged edge: positions fixed and the derivative along the boundary
+        tangent fixed (the conormal derivative is free).  The nodes must lie on
+        the boundary; the nodal frames there are aligned with the boundary."""
+        n = self.mesh.n_nodes
+        idx = _nodes(nodes, n)
+        tang = self._boundary_tangents()
+        missing = [i for i in idx if i not in tang]
+        if missing:
+            raise ValueError(f"simply_support: nodes {missing[:8]} are not on the boundary")
+        mask = np.zeros((n, 3, 3), bool)
+        for i in idx:
+            self._frame_tangent[int(i)] = tang[int(i)]
+            mask[i, 0, :] = True
+            mask[i, 1, :] = True
+            if tang[int(i)][1]:       # corner: both in-plane directions are tangential
+                mask[i, 2, :] = True
+
+        def values(t, U):
+            U[idx, 0] = self.X[idx]
+            U[idx, 1] = self.frames[idx, :, 0]
+            corner = [i for i in idx if tang[int(i)][1]]
+            if corner:
+                U[corner, 2] = self.frames[corner, :, 1]
+        self._add_bc(mask, values)
+        return self
+
+    def symmetry(self, axis, value=0.0, nodes=None):
+        """Symmetry plane X[axis] = value: the shell continues as its mirror image.
+
+        Nodes on the plane (default: all within tolerance) get a frame with one
+        vector along the plane normal e (T = N x e, and -e); constraints:
+        r . e = value, the derivative along the in-plane frame vector has no
+        e-component, the derivative along e is parallel to e.  A node may lie
+        on two perpendicular planes (a corner).
+        """
+        ax = "xyz".index(axis) if isinstance(axis, str) else int(axis)
+        n = self.mesh.n_nodes
+        idx = self.mesh.nodes_on_plane(ax, value) if nodes is None else _nodes(nodes, n)
+        if not len(idx):
+            raise ValueError(f"symmetry plane {'xyz'[ax]} = {value}: no nodes on it")
+        N = self.mesh.normals[idx]
+        bad = idx[np.abs(N[:, ax]) > 1e-6]
+        if len(bad):
+            raise ValueError(f"symmetry plane {'xyz'[ax]} = {value}: the normals at nodes "
+                             f"{bad[:8].tolist()} do not lie in the plane")
+        for i in idx:
+            axes = self._frame_plane.setdefault(int(i), [])
+            if ax not in axes:
+                axes.append(ax)
+            if len(axes) > 2:
+                raise ValueError(f"node {i} lies on more than two symmetry planes")
+        self._symmetry.append((idx, ax, float(value)))
+        self._prepared = False
+        return self
+
+    def _symmetry_constraints(self):
+        """Masks and values of the symmetry planes, from the final frames."""
+        n = self.mesh.n_nodes
+        for idx, ax, value in self._symmetry:
+            mask = np.zeros((n, 3, 3), bool)
+            mask[idx, 0, ax] = True
+            for s in (1, 2):
+                along = np.abs(self.frames[idx, ax, s - 1]) > 0.5     # frame vector = +-e
+                for c in range(3):
+                    mask[idx[along], s, c] = c != ax
+                    mask[idx[~along], s, c] = c == ax
+            m = mask.copy()
+
+            def values(t, U, m=m, idx=idx, ax=ax, value=value):
+                U[idx, 0, ax] = value
+                sl = m[:, 1:, :]
+                U[:, 1:, :][sl] = 0.0
+            self._fixed |= mask
+            self._bc_setup.append((mask, values))
+
+    def _boundary_tangents(self):
+        """node -> (unit boundary tangent, is_corner) from the boundary loops."""
+        out = {}
+        X = self.X
+        for loop in self.mesh.boundary_loops():
+            k = len(loop)
+            for j in range(k):
+                a, b, c = loop[j - 1], loop[j], loop[(j + 1) % k]
+                t1 = X[b] - X[a]
+                t2 = X[c] - X[b]
+                t1 /= np.linalg.norm(t1)
+                t2 /= np.linalg.norm(t2)
+                t = t1 + t2
+                corner = t1 @ t2 < np.cos(np.radians(30))
+                out[int(b)] = (t / np.linalg.norm(t) if not corner else t1, bool(corner))
+        return out
+
+    # ------------------------------------------------------------------ loads
+    def point_force(self, nodes, force):
+        """Forces on node positions (dead, ramped with t)."""
+        idx = _nodes(nodes, self.mesh.n_nodes)
+        F = np.broadcast_to(np.asarray(force, float), (len(idx), 3))
+        np.add.at(self._f_nodes, idx, F)
+        return self
+
+    def edge_load(self, nodes, traction):
+        """Traction per unit reference length on the boundary edges whose both
+        ends are in ``nodes`` (constant (3,) or callable X -> (k, 3))."""
+        sel = np.zeros(self.mesh.n_nodes, bool)
+        sel[_nodes(nodes, self.mesh.n_nodes)] = True
+        E = self.mesh.boundary_edges
+        E = E[sel[E[:, 0]] & sel[E[:, 1]]]
+        if not len(E):
+            raise ValueError("edge_load: no boundary edge has both ends in the given nodes")
+        X = self.X
+        mid = 0.5 * (X[E[:, 0]] + X[E[:, 1]])
+        p = traction(mid) if callable(traction) else np.broadcast_to(np.asarray(traction, float), mid.shape)
+        length = np.linalg.norm(X[E[:, 1]] - X[E[:, 0]], axis=1)
+        for k in range(2):
+            np.add.at(self._f_nodes, E[:, k], 0.5 * length[:, None] * p)
+        return self
+
+    def face_tractions(self, q_plus=None, q_minus=None):
+        """Dead tractions per unit reference area on the faces Z = +h/2 (q+) and
+        Z = -h/2 (q-): constant (3,), nodal (n, 3) or callable(X, N)."""
+        n = self.mesh.n_nodes
+        for val, attr in ((q_plus, "_q_plus"), (q_minus, "_q_minus")):
+            if val is None:
+                continue
+            if callable(val):
+                val = val(self.X, self.mesh.normals)
+            setattr(self, attr, _field(val, n, (3,), attr[1:]))
+        return self
+
+    def pressure(self, p):
+        """Pressure p (follower) as the potential -p V, V the volume enclosed by
+        the surface and the origin (closed surfaces or surfaces with fixed edges)."""
+        if not np.isfinite(p):
+            raise ValueError("pressure must be finite")
+        self._pressure = float(p)
+        return self
+
+    # ------------------------------------------------------------------ setup
+    def _setup(self):
+        if self._prepared:
+            return
+        n = self.mesh.n_nodes
+        N = self.mesh.normals
+        self.frames = self.mesh.frames.copy()
+        for i, axes in self._frame_plane.items():
+            # one frame vector along the (last) plane normal, the other in the plane(s)
+            e = np.eye(3)[axes[0]]
+            t1 = np.cross(N[i], e) if len(axes) == 1 else np.eye(3)[axes[1]]
+            t1 = t1 - (t1 @ N[i]) * N[i]
+            t1 /= np.linalg.norm(t1)
+            self.frames[i, :, 0] = t1
+            self.frames[i, :, 1] = np.cross(N[i], t1)
+        for i, (t, corner) in self._frame_tangent.items():
+            t1 = t - (t @ N[i]) * N[i]
+            t1 /= np.linalg.norm(t1)
+            self.frames[i, :, 0] = t1
+            self.frames[i, :, 1] = np.cross(N[i], t1)
+        self.frames = np.ascontiguousarray(self.frames)
+        self._fixed = self._fixed_user.copy()
+        self._bc_setup = list(self._bc)
+        self._symmetry_constraints()
+        self.U = np.zeros((n, 3, 3))
+        self.U[:, 0] = self.X
+        self.U[:, 1] = self.frames[:, :, 0]
+        self.U[:, 2] = self.frames[:, :, 1]
+        free = ~self._fixed.reshape(-1)
+        self.free = np.where(free)[0]
+        self._build_pattern()
+        ne, nq = self.mesh.n_triangles, len(self.wts)
+        self.Y1 = np.zeros((ne, nq, 3))
+        self.Y2 = np.zeros((ne, nq, 3))
+        self._Le = np.zeros(ne)
+        self._Ge = np.zeros((ne, 9, 3))
+        self._Ke = None
+        self._status = np.zeros(ne, np.int64)
+        self._f_faces = self._face_load_vector()
+        self._prepared = True
+
+    def _build_pattern(self):
+        """Lower-triangle CSR pattern of the free DOFs and the element map."""
+        tri = self.mesh.triangles
+        ndof = 9 * self.mesh.n_nodes
+        fidx = -np.ones(ndof, np.int64)
+        fidx[self.free] = np.arange(len(self.free))
+        self.free_index = fidx
+        ldof = (9 * tri[:, :, None] + np.arange(9)[None, None, :]).reshape(len(tri), 27)
+        lf = fidx[ldof]                                  # (E, 27) free index or -1
+        rows = np.broadcast_to(lf[:, :, None], (len(tri), 27, 27))
+        cols = np.broadcast_to(lf[:, None, :], (len(tri), 27, 27))
+        keep = (rows >= 0) & (cols >= 0) & (rows >= cols)
+        r, c = rows[keep], cols[keep]
+        nf = len(self.free)
+        key = r * nf + c
+        ukey, inv = np.unique(key, return_inverse=True)
+        self._emap = -np.ones((len(tri), 27, 27), np.int64)
+        # data position of each kept (e, p, q), for p >= q in local order too
+        pos = np.empty(keep.shape, np.int64)
+        pos[keep] = inv.ravel()
+        emap = np.where(keep, pos, -1)
+        # scatter_hessian reads emap[e, p, q] for q <= p in local order: make both
+        # orientations available
+        self._emap = np.maximum(emap, np.transpose(emap, (0, 2, 1)))
+        ur, uc = ukey // nf, ukey % nf
+        self._csr_rows, self._csr_cols = ur, uc
+        indptr = np.zeros(nf + 1, np.int64)
+        np.add.at(indptr, ur + 1, 1)
+        self._indptr = np.cumsum(indptr)
+        self._indices = uc
+        self._nnz = len(ukey)
+
+    def _face_load_vector(self):
+        """Nodal forces of -h qbar . r for unit t: sum_q w_q h qbar_q lambda_i."""
+        from .kernels.point import _reference_geometry
+        f = np.zeros((self.mesh.n_nodes, 3))
+        if not (np.any(self._q_plus) or np.any(self._q_minus)):
+            return f
+        from .discretize.dkt import apply_map, element_chart, point_map
+        tri, X, T = self.mesh.triangles, self.X, self.frames
+        Q, gl, et, el = np.zeros((3, 2, 2)), np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(3)
+        b, C, ref, blocks = np.zeros((5, 9)), np.zeros((2, 9)), np.zeros(15), np.zeros((9, 3))
+        w = (np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((2, 2, 3)), np.zeros((2, 3)),
+             np.zeros((3, 3)), np.zeros((2, 3)))
+        h = self.h
+        for e, nodes in enumerate(tri):
+            area = element_chart(X[nodes], np.ascontiguousarray(T[nodes]), Q, gl, et, el)
+            for i in range(3):
+                blocks[3 * i] = X[nodes[i]]
+                blocks[3 * i + 1] = T[nodes[i], :, 0]
+                blocks[3 * i + 2] = T[nodes[i], :, 1]
+            for lam, wq in zip(self.bary, self.wts):
+                point_map(lam, Q, gl, et, el, b, C)
+                apply_map(b, blocks, ref)
+                H, K, _ = _reference_geometry(ref, *w)
+                jac = np.linalg.norm(np.cross(ref[0:3], ref[3:6]))
+                mup, mum = 1 - H * h + 0.25 * K * h * h, 1 + H * h + 0.25 * K * h * h
+                hq = mup * (lam @ self._q_plus[nodes]) + mum * (lam @ self._q_minus[nodes])
+                f[nodes] += (wq * area * jac) * np.outer(lam, hq)
+        return f
+
+    # ------------------------------------------------------------------ problem protocol
+    def set_parameter(self, t):
+        self._t = t
+        self._Gt0, self._Gt1 = self.growth_at(t)
+        self._check_growth(self._Gt0, self._Gt1)
+        self._qp_t = np.ascontiguousarray(t * self._q_plus)
+        self._qm_t = np.ascontiguousarray(t * self._q_minus)
+        self._f_t = t * (self._f_nodes + self._f_faces)
+        self._p_t = t * self._pressure
+        for mask, values in self._bc_setup:
+            values(t, self.U)
+
+    def load_scale(self):
+        return float(np.linalg.norm(self._f_t)) + abs(self._p_t) * np.sqrt(self.mesh.areas.sum())
+
+    def size_scale(self):
+        return float(np.ptp(self.X, axis=0).max())
+
+    def free_state(self):
+        return self.U.reshape(-1)[self.free].copy()
+
+    def set_free_state(self, x):
+        self.U.reshape(-1)[self.free] = x
+
+    def save_point(self):
+        return (self.U.copy(), self.Y1.copy(), self.Y2.copy())
+
+    def restore_point(self, saved):
+        self.U[:], self.Y1[:], self.Y2[:] = saved
+
+    def evaluate(self, x, mode):
+        """Total energy (and gradient/Hessian on the free DOFs) at free DOFs x."""
+        U = self.U.copy()
+        U.reshape(-1)[self.free] = x
+        ne = self.mesh.n_triangles
+        if mode >= 2 and self._Ke is None:
+            self._Ke = np.zeros((ne, 27, 27))
+        Ke = self._Ke if mode >= 2 else _NO_KE
+        Ge = self._Ge if mode >= 1 else _NO_GE
+        # trial states (line search) start from, but do not overwrite, the warm starts
+        Y1 = self.Y1 if mode > 0 else self.Y1.copy()
+        has_load = bool(np.any(self._qp_t) or np.any(self._qm_t))
+        assemble_dkt(mode, self._level, self.law.kind, self.law.psi, self.law.params, self.h,
+                     self.mesh.triangles, self.X, self.frames, U, self.bary, self.wts,
+                     self._Gt0, self._Gt1, self._qp_t, self._qm_t, has_load, Y1, self.Y2,
+                     self._Le, Ge, Ke, self._status)
+        if self._status.any():
+            e = int(np.argmax(self._status != 0))
+            raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "
+                                  f"{STATUS_TEXT[int(self._status[e])]}")
+        r = U[:, 0]
+        E = self._Le.sum() - np.sum(self._f_t * r)
+        if self._p_t:
+            V, gV, HV = _volume_terms(self.mesh.triangles, r, mode)
+            E -= self._p_t * V
+        if mode == 0:
+            return E, None, None
+        G = np.zeros((self.mesh.n_nodes, 3, 3))
+        scatter_gradient(self.mesh.triangles, self._Ge, G)
+        G[:, 0] -= self._f_t
+        if self._p_t:
+            G[:, 0] -= self._p_t * gV
+        g = G.reshape(-1)[self.free]
+        if mode == 1:
+            return E, g, None
+        if self._p_t:
+            # -p d2V on the position blocks (local DOFs 9i + c)
+            for i in range(3):
+                for j in range(3):
+                    self._Ke[:, 9 * i:9 * i + 3, 9 * j:9 * j + 3] -= self._p_t * HV[:, i, j]
+        data = np.zeros(self._nnz)
+        scatter_hessian(self._Ke, self._emap, data)
+        nf = len(self.free)
+        K = sp.csr_matrix((data, self._indices, self._indptr), shape=(nf, nf))
+        return E, g, K
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, steps=1, verbose=True, rtol=1e-9, max_iter=40, min_dt=1e-4):
+        """Equilibrium at t = 1 by continuation from the reference (t = 0)."""
+        self._setup()
+        t0 = time.perf_counter()
+        opts = NewtonOptions(rtol=rtol, max_iter=max_iter, verbose=verbose)
+        if verbose:
+            print(f"shellritz: {self.mesh.n_triangles} triangles, {len(self.free)} free DOFs, "
+                  f"level {self.level}, {len(self.wts)}-point rule", flush=True)
+        try:
+            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt)
+        except SolveError as exc:
+            exc.result = Result(self, None, time.perf_counter() - t0, converged=False,
+                                t=exc.last_t)
+            raise
+        return Result(self, history, time.perf_counter() - t0, converged=True, t=1.0)
+
+
+_NO_GE = np.zeros((1, 9, 3))
+_NO_KE = np.zeros((1, 27, 27))
+
+
+def _volume_terms(tri, r, mode):
+    """V = (1/6) sum r0 . (r1 x r2), its gradient (n, 3) and per-triangle
+    Hessian blocks HV (E, 3, 3, 3, 3)."""
+    P = r[tri]
+    V = np.einsum("ij,ij->i", P[:, 0], np.cross(P[:, 1], P[:, 2])).sum() / 6.0
+    if mode == 0:
+        return V, None, None
+    g = np.zeros_like(r)
+    for k in range(3):
+        np.add.at(g, tri[:, k], np.cross(P[:, (k + 1) % 3], P[:, (k + 2) % 3]) / 6.0)
+    HV = np.zeros((len(tri), 3, 3, 3, 3))
+    for k in range(3):
+        i, j, l = k, (k + 1) % 3, (k + 2) % 3
+        # d2V/dr_i dr_j = [r_l]_x / 6 with (i, j, l) cyclic ... sign from d(r_j x r_l)/dr_j
+        S = _skew(P[:, l]) / 6.0
+        HV[:, i, j] = -S
+        HV[:, j, i] = S
+    return V, g, HV
+
+
+def _skew(a):
+    S = np.zeros(a.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -a[..., 2], a[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = a[..., 2], -a[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -a[..., 1], a[..., 0]
+    return S
+
+
+@dataclass
+class Result:
+    """Equilibrium state and fields; see :meth:`save`."""
+
+    shell: Shell
+    history: object
+    wall_s: float
+    converged: bool
+    t: float
+
+    def __post_init__(self):
+        s = self.shell
+        self.r = s.U[:, 0].copy()
+        self.derivatives = s.U[:, 1:].copy()
+        self.y1 = s.Y1.copy()
+        self.y2 = s.Y2.copy()
+        self.energy = float(s.evaluate(s.free_state(), 0)[0]) if self.t is not None else np.nan
+
+    @property
+    def displacement(self):
+        return self.r - self.shell.X
+
+    def save(self, path):
+        """Write the deformed mesh with fields (VTU by default; any meshio format)."""
+        from .post import write_result
+        write_result(self, path)

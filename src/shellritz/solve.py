@@ -1,0 +1,208 @@
+"""Newton's method with backtracking line search, sparse Cholesky solves and
+continuation in a load/growth parameter t in [0, 1].
+
+The solver works on a *problem* object (the DKT, axisymmetric and
+plane-strain engines provide one) with
+
+    problem.set_parameter(t)            growth, loads and prescribed values at t
+    problem.evaluate(x, mode)           -> (E, g, K) on the free DOFs x;
+                                           mode 0: (E, None, None), 1: (E, g, None),
+                                           2: (E, g, K) with K the lower triangle (CSR)
+    problem.free_state() / problem.set_free_state(x)
+    problem.save_point() / problem.restore_point(saved)   rollback (warm starts etc.)
+
+``evaluate`` raises :class:`EvaluationError` where the energy is undefined
+(inverted material, loss of ellipticity, ...); the line search treats that as
++inf.  A Hessian that is not positive definite is shifted (and the shift
+reported), never a crash.  When a continuation step fails it is halved; if
+the step becomes too small a :class:`SolveError` is raised that carries the
+last converged state.
+"""
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+
+class EvaluationError(RuntimeError):
+    """The energy cannot be evaluated at this state (message says where/why)."""
+
+
+class SolveError(RuntimeError):
+    """Continuation failed; ``.last`` holds the last converged parameter and state."""
+
+    def __init__(self, msg, last_t=None, history=None):
+        super().__init__(msg)
+        self.last_t = last_t
+        self.history = history
+
+
+@dataclass
+class NewtonOptions:
+    rtol: float = 1e-9          # |g| <= rtol * max(|g| at the step start, |external load|)
+    xtol: float = 1e-13         # or a full Newton step below xtol * problem size
+    max_iter: int = 40
+    armijo: float = 1e-4
+    min_alpha: float = 1e-8
+    verbose: bool = True
+
+
+@dataclass
+class Iteration:
+    t: float
+    it: int
+    energy: float
+    grad_norm: float
+    step: float
+    shift: float
+    seconds: float
+
+
+@dataclass
+class SolveHistory:
+    iterations: list = field(default_factory=list)
+    steps: list = field(default_factory=list)     # (t, converged, n_iterations)
+    stable: bool = True
+    final_shift: float = 0.0
+
+
+def cholesky_solve(K, rhs):
+    """Solve K x = rhs with CHOLMOD (cholespy); K: lower triangle, CSR.
+
+    On failure (not positive definite) add sigma * diag scale, sigma from 1e-10
+    growing x100, and report the shift used.  Returns (x, shift).
+    """
+    from cholespy import CholeskySolverD, MatrixType
+
+    n = K.shape[0]
+    diag = K.diagonal()
+    scale = max(np.abs(diag).max(), 1e-300)
+    shift = 0.0
+    sigma = 1e-10
+    while True:
+        Kt = K if shift == 0.0 else (K + sp.identity(n, format="csr") * shift).tocsr()
+        try:
+            solver = CholeskySolverD(n, Kt.indptr.astype(np.int32), Kt.indices.astype(np.int32),
+                                     np.ascontiguousarray(Kt.data), MatrixType.CSR)
+            x = np.zeros(n)
+            solver.solve(np.ascontiguousarray(rhs, dtype=np.float64), x)
+            if np.all(np.isfinite(x)):
+                return x, shift
+        except ValueError:
+            pass
+        shift = sigma * scale
+        sigma *= 100.0
+        if sigma > 1e6:
+            raise EvaluationError("Hessian could not be made positive definite by shifting")
+
+
+def newton(problem, t, opts, history, g_ref):
+    """Minimize at fixed t from the current state. Returns True on convergence."""
+    x = problem.free_state()
+    try:
+        E, g, K = problem.evaluate(x, 2)
+    except EvaluationError as exc:
+        if opts.verbose:
+            print(f"    t={t:.4f}: start state not admissible ({exc})")
+        return False
+    gnorm = np.linalg.norm(g)
+    size = problem.size_scale()
+    # floor: the force of a relative displacement xtol on the stiffest DOF
+    floor = opts.xtol * size * (np.abs(K.diagonal()).max() if K.shape[0] else 0.0)
+    tol = max(opts.rtol * max(g_ref, gnorm), floor)
+    xtol = opts.xtol * size
+    last_step = np.inf
+    for it in range(opts.max_iter + 1):
+        t0 = time.perf_counter()
+        if gnorm <= tol or last_step <= xtol:
+            _, shift = cholesky_solve(K, np.zeros(len(x))) if len(x) else (None, 0.0)
+            history.final_shift = shift
+            history.stable = shift == 0.0
+            return True
+        if it == opts.max_iter:
+            break
+        p, shift = cholesky_solve(K, -g)
+        slope = g @ p
+        if slope >= 0:            # shifted system still not a descent direction
+            p = -g
+            slope = -gnorm ** 2
+        alpha = 1.0
+        saved = problem.save_point()
+        while True:
+            xn = x + alpha * p
+            try:
+                En, _, _ = problem.evaluate(xn, 0)
+                ok = np.isfinite(En) and En <= E + opts.armijo * alpha * slope
+                # near the solution the energy test drowns in round-off: accept
+                # full steps that reduce the gradient instead
+                if not ok and alpha == 1.0 and abs(En - E) <= 1e-12 * max(abs(E), 1e-300) * 1e3:
+                    _, gn, _ = problem.evaluate(xn, 1)
+                    ok = np.linalg.norm(gn) < gnorm
+            except EvaluationError:
+                ok = False
+                problem.restore_point(saved)
+            if ok:
+                break
+            alpha *= 0.5
+            if alpha < opts.min_alpha:
+                problem.restore_point(saved)
+                if opts.verbose:
+                    print(f"    t={t:.4f} it={it}: line search failed")
+                return False
+        x = xn
+        last_step = np.abs(p).max() if alpha == 1.0 and shift == 0.0 else np.inf
+        problem.set_free_state(x)
+        try:
+            E, g, K = problem.evaluate(x, 2)
+        except EvaluationError:
+            problem.restore_point(saved)
+            return False
+        gnorm = np.linalg.norm(g)
+        rec = Iteration(t, it, E, gnorm, alpha, shift, time.perf_counter() - t0)
+        history.iterations.append(rec)
+        if opts.verbose:
+            print(f"    t={t:.4f} it={it:2d}  E={E: .10e}  |g|={gnorm:.3e}  step={alpha:.3g}"
+                  + (f"  shift={shift:.2e}" if shift else ""), flush=True)
+    return False
+
+
+def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0):
+    """Follow the equilibrium from t_start to 1 in (adaptive) steps."""
+    opts = opts or NewtonOptions()
+    history = SolveHistory()
+    t = t_start
+    dt = (1.0 - t_start) / max(1, steps)
+    problem.set_parameter(t)
+    g_ref = problem.load_scale()
+    if not newton(problem, t, opts, history, g_ref):
+        raise SolveError(f"no equilibrium at the start t={t}", last_t=None, history=history)
+    history.steps.append((t, True))
+    prev = None          # (t, free state) of the previous converged step: secant predictor
+    while t < 1.0 - 1e-14:
+        dt = min(dt, 1.0 - t)
+        saved = problem.save_point()
+        x_now = problem.free_state()
+        t_new = t + dt
+        problem.set_parameter(t_new)
+        if prev is not None:
+            problem.set_free_state(x_now + (dt / (t - prev[0])) * (x_now - prev[1]))
+        if opts.verbose:
+            print(f"  step t = {t_new:.4f} (dt = {dt:.4f})", flush=True)
+        ok = newton(problem, t_new, opts, history, max(g_ref, problem.load_scale()))
+        history.steps.append((t_new, ok))
+        if ok:
+            prev = (t, x_now)
+            t = t_new
+            dt = min(2 * dt, 1.0 - t) if len(history.iterations) and history.iterations[-1].it < 6 else dt
+        else:
+            problem.restore_point(saved)
+            problem.set_parameter(t)
+            dt *= 0.5
+            if opts.verbose:
+                print(f"  step failed: back to t = {t:.4f}, dt -> {dt:.4g}")
+            if dt < min_dt:
+                raise SolveError(f"continuation failed beyond t = {t:.6f} (step below {min_dt}); "
+                                 "the last converged state is kept", last_t=t, history=history)
+    return history
