@@ -68,21 +68,20 @@ class SolveHistory:
     final_shift: float = 0.0
 
 
-def cholesky_solve(K, rhs):
-    """Solve K x = rhs with CHOLMOD (cholespy); K: lower triangle, CSR.
+def cholesky_solve(K, rhs, shift=0.0):
+    """Solve (K + shift I) x = rhs with CHOLMOD (cholespy); K: lower triangle, CSR.
 
-    On failure (not positive definite) add sigma * diag scale, sigma from 1e-10
-    growing x100, and report the shift used.  Returns (x, shift).
+    A failed factorization means K + shift I is not positive definite: the
+    shift is raised (from 1e-8 of the largest diagonal entry, x10 per try) and
+    the solve retried.  Returns (x, shift used).
     """
     from cholespy import CholeskySolverD, MatrixType
 
     n = K.shape[0]
-    diag = K.diagonal()
-    scale = max(np.abs(diag).max(), 1e-300)
-    shift = 0.0
-    sigma = 1e-10
+    scale = max(np.abs(K.diagonal()).max(), 1e-300)
+    eye = sp.identity(n, format="csr")
     while True:
-        Kt = K if shift == 0.0 else (K + sp.identity(n, format="csr") * shift).tocsr()
+        Kt = K if shift == 0.0 else (K + eye * shift).tocsr()
         try:
             solver = CholeskySolverD(n, Kt.indptr.astype(np.int32), Kt.indices.astype(np.int32),
                                      np.ascontiguousarray(Kt.data), MatrixType.CSR)
@@ -92,9 +91,8 @@ def cholesky_solve(K, rhs):
                 return x, shift
         except ValueError:
             pass
-        shift = sigma * scale
-        sigma *= 100.0
-        if sigma > 1e6:
+        shift = max(1e-8 * scale, 10.0 * shift)
+        if shift > 1e3 * scale:
             raise EvaluationError("Hessian could not be made positive definite by shifting")
 
 
@@ -114,16 +112,21 @@ def newton(problem, t, opts, history, g_ref):
     tol = max(opts.rtol * max(g_ref, gnorm), floor)
     xtol = opts.xtol * size
     last_step = np.inf
+    shift = 0.0
+    gnorms = [gnorm]
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= xtol:
-            _, shift = cholesky_solve(K, np.zeros(len(x))) if len(x) else (None, 0.0)
-            history.final_shift = shift
-            history.stable = shift == 0.0
+            _, final = cholesky_solve(K, np.zeros(len(x))) if len(x) else (None, 0.0)
+            history.final_shift = final
+            history.stable = final == 0.0
             return True
-        if it == opts.max_iter:
+        if it == opts.max_iter or (it >= 8 and gnorm > 0.5 * gnorms[-7]):
+            if opts.verbose:
+                print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e})")
             break
-        p, shift = cholesky_solve(K, -g)
+        # try a smaller shift than last time (Levenberg-Marquardt style)
+        p, shift = cholesky_solve(K, -g, 0.1 * shift if shift > 0 else 0.0)
         slope = g @ p
         if slope >= 0:            # shifted system still not a descent direction
             p = -g
@@ -160,6 +163,7 @@ def newton(problem, t, opts, history, g_ref):
             problem.restore_point(saved)
             return False
         gnorm = np.linalg.norm(g)
+        gnorms.append(gnorm)
         rec = Iteration(t, it, E, gnorm, alpha, shift, time.perf_counter() - t0)
         history.iterations.append(rec)
         if opts.verbose:
