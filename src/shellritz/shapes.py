@@ -103,16 +103,17 @@ def sphere(levels=3, radius=1.0, center=(0.0, 0.0, 0.0)):
     return Mesh(radius * X + c, T, normal=lambda Y: (Y - c) / np.linalg.norm(Y - c, axis=1)[:, None])
 
 
-def hemisphere(nphi, ntheta, radius=1.0, hole_deg=18.0, pattern="alternate"):
+def hemisphere(nphi, ntheta, radius=1.0, hole_deg=18.0, phi=(0.0, 2 * np.pi), pattern="alternate"):
     """Hemisphere z >= 0 with a polar hole of half-angle hole_deg (the
     pinched-hemisphere benchmark); coordinates: polar angle from hole_deg to
-    90 degrees (equator), azimuth phi over 360 degrees.  Outward normal."""
+    90 degrees (equator), azimuth over the range phi.  Outward normal."""
+    full = np.isclose(phi[1] - phi[0], 2 * np.pi)
     th = np.linspace(np.radians(hole_deg), np.pi / 2, ntheta + 1)
-    ph = np.linspace(0, 2 * np.pi, nphi + 1)[:-1]
+    ph = np.linspace(phi[0], phi[1], nphi + 1)[: nphi if full else nphi + 1]
     PH, TH = np.meshgrid(ph, th, indexing="ij")
     X = radius * np.c_[(np.sin(TH) * np.cos(PH)).ravel(), (np.sin(TH) * np.sin(PH)).ravel(),
                        np.cos(TH).ravel()]
-    T = _grid_triangles(nphi, ntheta, pattern, periodic_u=True)
+    T = _grid_triangles(nphi, ntheta, pattern, periodic_u=full)
     # (phi, theta) grid is left-handed w.r.t. the outward normal: flip
     T = T[:, [0, 2, 1]]
     return Mesh(X, T, normal=lambda Y: Y / np.linalg.norm(Y, axis=1)[:, None])

@@ -96,7 +96,7 @@ class Shell:
         self._bc = []          # (mask, values(t, U)) applied in order
         self._frame_plane = {}  # node -> symmetry plane axes (frames)
         self._symmetry = []       # (nodes, axis, value)
-        self._frame_tangent = {}  # node -> boundary tangent (simply supported)
+        self._edges = []          # (kind, nodes, axis): hinges and diaphragms
         # loads at t = 1
         self._f_nodes = np.zeros((n, 3))
         self._q_plus = np.zeros((n, 3))
@@ -207,30 +207,72 @@ class Shell:
 
     def simply_support(self, nodes):
         """Hinged edge: positions fixed and the derivative along the boundary
-        tangent fixed (the conormal derivative is free).  The nodes must lie on
-        the boundary; the nodal frames there are aligned with the boundary."""
-        n = self.mesh.n_nodes
-        idx = _nodes(nodes, n)
-        tang = self._boundary_tangents()
-        missing = [i for i in idx if i not in tang]
-        if missing:
-            raise ValueError(f"simply_support: nodes {missing[:8]} are not on the boundary")
-        mask = np.zeros((n, 3, 3), bool)
-        for i in idx:
-            self._frame_tangent[int(i)] = tang[int(i)]
-            mask[i, 0, :] = True
-            mask[i, 1, :] = True
-            if tang[int(i)][1]:       # corner: both in-plane directions are tangential
-                mask[i, 2, :] = True
-
-        def values(t, U):
-            U[idx, 0] = self.X[idx]
-            U[idx, 1] = self.frames[idx, :, 0]
-            corner = [i for i in idx if tang[int(i)][1]]
-            if corner:
-                U[corner, 2] = self.frames[corner, :, 1]
-        self._add_bc(mask, values)
+        tangent fixed (the conormal derivative is free); at corners both
+        derivatives are fixed.  The nodes must lie on the boundary."""
+        self._edges.append(("hinge", _nodes(nodes, self.mesh.n_nodes), None))
+        self._prepared = False
         return self
+
+    def diaphragm(self, nodes, axis):
+        """Rigid diaphragm in the plane normal to ``axis`` (e.g. the end of a
+        cylindrical roof, axis 'z'): the displacement components in that plane
+        and their derivative along the edge vanish; the normal component and the
+        rotation about the edge are free.  The nodes must lie on the boundary."""
+        ax = "xyz".index(axis) if isinstance(axis, str) else int(axis)
+        self._edges.append(("diaphragm", _nodes(nodes, self.mesh.n_nodes), ax))
+        self._prepared = False
+        return self
+
+    def _edge_tangents(self, idx):
+        """Unit tangent along the boundary edges joining nodes of idx, and the
+        corner flag (the edges turn by more than 30 degrees)."""
+        sel = np.zeros(self.mesh.n_nodes, bool)
+        sel[idx] = True
+        E = self.mesh.boundary_edges
+        E = E[sel[E[:, 0]] & sel[E[:, 1]]]
+        X = self.X
+        acc = {int(i): [] for i in idx}
+        for a, b in E:
+            t = X[b] - X[a]
+            t /= np.linalg.norm(t)
+            acc[int(a)].append(t)
+            acc[int(b)].append(t)
+        out = {}
+        for i, ts in acc.items():
+            if not ts:
+                raise ValueError(f"node {i} is not on a boundary edge joining the given nodes")
+            corner = len(ts) == 2 and ts[0] @ ts[1] < np.cos(np.radians(30))
+            t = ts[0] if corner else np.sum(ts, axis=0)
+            N = self.mesh.normals[i]
+            t = t - (t @ N) * N                  # chords leave the tangent plane
+            out[i] = (t / np.linalg.norm(t), corner)
+        return out
+
+    def _edge_constraints(self):
+        """Masks of hinges and diaphragms, from the final frames."""
+        n = self.mesh.n_nodes
+        for kind, idx, ax in self._edges:
+            mask = np.zeros((n, 3, 3), bool)
+            tang = self._edge_tangents(idx)
+            comps = [c for c in range(3) if c != ax] if kind == "diaphragm" else [0, 1, 2]
+            for i in idx:
+                t, corner = tang[int(i)]
+                mask[i, 0, comps] = True
+                if corner and kind == "hinge":
+                    mask[i, 1:, :] = True
+                    continue
+                align = np.abs(self.frames[i].T @ t)
+                s = int(np.argmax(align)) + 1
+                if align[s - 1] < 0.99:
+                    raise ValueError(f"{kind} at node {i}: no nodal frame vector along the edge "
+                                     "(a symmetry plane there imposes another frame)")
+                mask[i, s, comps] = True
+            m = mask.copy()
+
+            def values(t, U, m=m):
+                U[m] = self._Uref[m]
+            self._fixed |= mask
+            self._bc_setup.append((mask, values))
 
     def symmetry(self, axis, value=0.0, nodes=None):
         """Symmetry plane X[axis] = value: the shell continues as its mirror image.
@@ -280,23 +322,6 @@ class Shell:
                 U[:, 1:, :][sl] = 0.0
             self._fixed |= mask
             self._bc_setup.append((mask, values))
-
-    def _boundary_tangents(self):
-        """node -> (unit boundary tangent, is_corner) from the boundary loops."""
-        out = {}
-        X = self.X
-        for loop in self.mesh.boundary_loops():
-            k = len(loop)
-            for j in range(k):
-                a, b, c = loop[j - 1], loop[j], loop[(j + 1) % k]
-                t1 = X[b] - X[a]
-                t2 = X[c] - X[b]
-                t1 /= np.linalg.norm(t1)
-                t2 /= np.linalg.norm(t2)
-                t = t1 + t2
-                corner = t1 @ t2 < np.cos(np.radians(30))
-                out[int(b)] = (t / np.linalg.norm(t) if not corner else t1, bool(corner))
-        return out
 
     # ------------------------------------------------------------------ loads
     def point_force(self, nodes, force):
@@ -358,19 +383,25 @@ class Shell:
             t1 /= np.linalg.norm(t1)
             self.frames[i, :, 0] = t1
             self.frames[i, :, 1] = np.cross(N[i], t1)
-        for i, (t, corner) in self._frame_tangent.items():
-            t1 = t - (t @ N[i]) * N[i]
-            t1 /= np.linalg.norm(t1)
-            self.frames[i, :, 0] = t1
-            self.frames[i, :, 1] = np.cross(N[i], t1)
+        for kind, idx, ax in self._edges:
+            # frames along the edge (symmetry-plane frames take priority)
+            for i, (t, corner) in self._edge_tangents(idx).items():
+                if i in self._frame_plane:
+                    continue
+                t1 = t - (t @ N[i]) * N[i]
+                t1 /= np.linalg.norm(t1)
+                self.frames[i, :, 0] = t1
+                self.frames[i, :, 1] = np.cross(N[i], t1)
         self.frames = np.ascontiguousarray(self.frames)
         self._fixed = self._fixed_user.copy()
         self._bc_setup = list(self._bc)
-        self._symmetry_constraints()
         self.U = np.zeros((n, 3, 3))
         self.U[:, 0] = self.X
         self.U[:, 1] = self.frames[:, :, 0]
         self.U[:, 2] = self.frames[:, :, 1]
+        self._Uref = self.U.copy()
+        self._symmetry_constraints()
+        self._edge_constraints()
         free = ~self._fixed.reshape(-1)
         self.free = np.where(free)[0]
         self._build_pattern()
@@ -460,6 +491,10 @@ class Shell:
     def load_scale(self):
         return float(np.linalg.norm(self._f_t)) + abs(self._p_t) * np.sqrt(self.mesh.areas.sum())
 
+    def energy_magnitude(self):
+        """Sum of the magnitudes of the energy terms (its round-off scale)."""
+        return self._E_magnitude
+
     def size_scale(self):
         return float(np.ptp(self.X, axis=0).max())
 
@@ -497,6 +532,7 @@ class Shell:
                                   f"{STATUS_TEXT[int(self._status[e])]}")
         r = U[:, 0]
         E = self._Le.sum() - np.sum(self._f_t * r)
+        self._E_magnitude = np.abs(self._Le).sum() + np.abs(self._f_t * r).sum()
         if self._p_t:
             V, gV, HV = _volume_terms(self.mesh.triangles, r, mode)
             E -= self._p_t * V

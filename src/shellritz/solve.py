@@ -43,6 +43,7 @@ class SolveError(RuntimeError):
 class NewtonOptions:
     rtol: float = 1e-9          # |g| <= rtol * max(|g| at the step start, |external load|)
     xtol: float = 1e-13         # or a full Newton step below xtol * problem size
+    ftol: float = 1e-15         # |g| floor: the force of a relative move ftol on the stiffest DOF
     max_iter: int = 40
     armijo: float = 1e-4
     min_alpha: float = 1e-8
@@ -107,8 +108,8 @@ def newton(problem, t, opts, history, g_ref):
         return False
     gnorm = np.linalg.norm(g)
     size = problem.size_scale()
-    # floor: the force of a relative displacement xtol on the stiffest DOF
-    floor = opts.xtol * size * (np.abs(K.diagonal()).max() if K.shape[0] else 0.0)
+    # floor: round-off level, the force of a relative displacement ftol on the stiffest DOF
+    floor = opts.ftol * size * (np.abs(K.diagonal()).max() if K.shape[0] else 0.0)
     tol = max(opts.rtol * max(g_ref, gnorm), floor)
     xtol = opts.xtol * size
     last_step = np.inf
@@ -128,6 +129,11 @@ def newton(problem, t, opts, history, g_ref):
         # try a smaller shift than last time (Levenberg-Marquardt style)
         p, shift = cholesky_solve(K, -g, 0.1 * shift if shift > 0 else 0.0)
         slope = g @ p
+        # the predicted decrease -g.p/2 is below the round-off of the energy:
+        # nothing more can be gained (ill-conditioned problems stop here)
+        if shift == 0.0 and -slope <= 1e3 * np.finfo(float).eps * problem.energy_magnitude():
+            last_step = 0.0
+            continue
         if slope >= 0:            # shifted system still not a descent direction
             p = -g
             slope = -gnorm ** 2
