@@ -129,9 +129,11 @@ def newton(problem, t, opts, history, g_ref):
         # try a smaller shift than last time (Levenberg-Marquardt style)
         p, shift = cholesky_solve(K, -g, 0.1 * shift if shift > 0 else 0.0)
         slope = g @ p
-        # the predicted decrease -g.p/2 is below the round-off of the energy:
-        # nothing more can be gained (ill-conditioned problems stop here)
-        if shift == 0.0 and -slope <= 1e3 * np.finfo(float).eps * problem.energy_magnitude():
+        # at the round-off floor: the predicted decrease -g.p/2 is below the
+        # round-off of the energy and the last full step no longer reduced |g|
+        # (ill-conditioned problems, e.g. very thin shells, stop here)
+        if (shift == 0.0 and len(gnorms) > 1 and gnorm > 0.2 * gnorms[-2]
+                and -slope <= 1e3 * np.finfo(float).eps * problem.energy_magnitude()):
             last_step = 0.0
             continue
         if slope >= 0:            # shifted system still not a descent direction
