@@ -115,6 +115,7 @@ def newton(problem, t, opts, history, g_ref):
     last_step = np.inf
     shift = 0.0
     gnorms = [gnorm]
+    energies = [E]
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= xtol:
@@ -122,7 +123,11 @@ def newton(problem, t, opts, history, g_ref):
             history.final_shift = final
             history.stable = final == 0.0
             return True
-        if it == opts.max_iter or (it >= 8 and gnorm > 0.5 * gnorms[-7]):
+        # stagnation: |g| does not fall and neither does the energy (escaping an
+        # unstable state lowers E while |g| grows: that is progress)
+        stalled = (it >= 8 and gnorm > 0.5 * gnorms[-7]
+                   and energies[-7] - E <= 1e-6 * max(problem.energy_magnitude(), abs(E)))
+        if it == opts.max_iter or stalled:
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e})")
             break
@@ -172,6 +177,7 @@ def newton(problem, t, opts, history, g_ref):
             return False
         gnorm = np.linalg.norm(g)
         gnorms.append(gnorm)
+        energies.append(E)
         rec = Iteration(t, it, E, gnorm, alpha, shift, time.perf_counter() - t0)
         history.iterations.append(rec)
         if opts.verbose:

@@ -1,0 +1,2 @@
+"""Example meshes shipped with shellritz (package ``shellritz.meshes``);
+``make_meshes.py`` regenerates them."""
