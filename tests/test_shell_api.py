@@ -1,0 +1,159 @@
+"""Shell API: loads, growth input, output files, bad input and failures.
+
+Observed: a pressurized icosphere converges to the radius of the 1D
+(uniform-state) solution of the same energy with error 4e-4, 1e-4, 2.6e-5 for
+icosphere levels 2, 3, 4 (second order); the volume potential's gradient and
+Hessian match central differences to 1e-9.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.optimize import brentq
+
+from shellritz import (EvaluationError, NeoHookean, Shell, SolveError, shapes)
+from shellritz.model import evaluate_point
+
+LAW = NeoHookean(1.0, nu=0.3)
+
+
+def sphere_point(r0, h):
+    """Point data of a uniformly inflated unit sphere (see tests/pointdata.py)."""
+    from pointdata import sphere
+    ref = sphere(1.0)
+    return r0 * ref, ref
+
+
+def one_d_pressure_radius(p, h):
+    """Minimize 4 pi L(r0) - p 4 pi r0^3 / 3 over the radius (uniform state)."""
+    def dE(r0):
+        v, ref = sphere_point(r0, h)
+        r = evaluate_point(LAW, v, ref, h, "consistent", mode="gradient")
+        dv = ref.copy()
+        return r.grad @ dv - p * r0 ** 2
+    return brentq(dE, 1.0, 3.0, xtol=1e-14)
+
+
+def test_pressurized_sphere_matches_uniform_solution():
+    h, p = 0.05, 0.02
+    exact = one_d_pressure_radius(p, h)
+    errors = []
+    for level in (2, 3, 4):
+        mesh = shapes.sphere(level)
+        s = Shell(mesh, h, LAW).pressure(p)
+        res = s.solve(steps=4, verbose=False)
+        radius = np.linalg.norm(res.r - res.r.mean(axis=0), axis=1)
+        errors.append(abs(radius.mean() - exact))
+    assert errors[-1] < 1e-4, errors
+    assert errors[0] / errors[1] > 3 and errors[1] / errors[2] > 3, errors
+
+
+def test_volume_potential_derivatives():
+    mesh = shapes.sphere(1)
+    s = Shell(mesh, 0.05, LAW).pressure(0.3)
+    s._setup()
+    s.set_parameter(1.0)
+    rng = np.random.default_rng(0)
+    x = s.free_state() + 0.01 * rng.standard_normal(len(s.free))
+    E, g, K = s.evaluate(x, 2)
+    K = (K + sp.tril(K, -1).T).toarray()
+    eps = 1e-6
+    for i in rng.choice(len(x), 12, replace=False):
+        e = np.zeros_like(x)
+        e[i] = eps
+        Ep, gp, _ = s.evaluate(x + e, 1)
+        Em, gm, _ = s.evaluate(x - e, 1)
+        assert (Ep - Em) / (2 * eps) == pytest.approx(g[i], rel=1e-6, abs=1e-9)
+        np.testing.assert_allclose((gp - gm) / (2 * eps), K[:, i], atol=1e-8 * np.abs(K).max())
+
+
+def test_growth_as_function_of_position_and_parameter():
+    mesh = shapes.rectangle(4, 2, lx=1.0, ly=0.5)
+    calls = []
+
+    def growth(t):
+        calls.append(t)
+        G0 = np.broadcast_to(np.diag([1 + 0.2 * t, 1, 1]), (mesh.n_nodes, 3, 3)).copy()
+        return G0, np.zeros((mesh.n_nodes, 3, 3))
+    s = Shell(mesh, 0.02, LAW).set_growth(function=growth)
+    s.pin([0])
+    s.symmetry("y", 0.0)
+    s.symmetry("x", 0.0)
+    res = s.solve(steps=2, verbose=False)
+    assert 1.0 in calls
+    np.testing.assert_allclose(res.r[:, 0], 1.2 * mesh.vertices[:, 0], atol=1e-9)
+    # positional form: callable(X, N)
+    s2 = Shell(mesh, 0.02, LAW).set_growth(G0=lambda X, N: np.broadcast_to(1.1 * np.eye(3), (len(X), 3, 3)))
+    assert s2._G0.shape == (mesh.n_nodes, 3, 3)
+
+
+def test_save_any_meshio_format(tmp_path):
+    import meshio
+    mesh = shapes.rectangle(3, 3)
+    s = Shell(mesh, 0.02, LAW).set_growth(G0=np.diag([1.1, 1.0, 1.0]))
+    s.pin([0]).symmetry("x", 0.0).symmetry("y", 0.0)
+    res = s.solve(verbose=False)
+    for name in ("out.vtu", "out.vtk"):
+        res.save(tmp_path / name)
+        m = meshio.read(tmp_path / name)
+        assert len(m.points) == mesh.n_nodes
+    m = meshio.read(tmp_path / "out.vtu")
+    np.testing.assert_allclose(m.point_data["displacement"], res.displacement)
+    stretch = m.cell_data["principal_stretch"][0]
+    np.testing.assert_allclose(stretch[:, 0], 1.1, atol=1e-8)     # the grown stress-free state
+    P = m.cell_data["first_piola_kirchhoff"][0]
+    assert np.abs(P).max() < 1e-8
+
+
+def test_bad_input_is_rejected_with_a_clear_message():
+    mesh = shapes.rectangle(2, 2)
+    with pytest.raises(ValueError, match="thickness"):
+        Shell(mesh, -0.1, LAW)
+    with pytest.raises(ValueError, match="level"):
+        Shell(mesh, 0.1, LAW, level="plate")
+    with pytest.raises(ValueError, match="no 5-point triangle rule"):
+        Shell(mesh, 0.1, LAW, quadrature=5)
+    s = Shell(mesh, 0.1, LAW)
+    with pytest.raises(ValueError, match=r"det G0 <= 0 at nodes \[0, 1"):
+        s.set_growth(G0=np.diag([1.0, 1.0, -1.0]))
+    with pytest.raises(ValueError, match="non-finite growth"):
+        s.set_growth(G1=np.full((3, 3), np.nan))
+    with pytest.raises(ValueError, match="node indices outside"):
+        s.clamp([99])
+    with pytest.raises(ValueError, match="no nodes on it"):
+        s.symmetry("x", 5.0)
+    with pytest.raises(ValueError, match="pressure must be finite"):
+        s.pressure(np.inf)
+    with pytest.raises(TypeError):
+        Shell(mesh, 0.1, "rubber")
+
+
+def test_failure_keeps_the_last_converged_state():
+    """A cantilever rolled up by an end rotation of 2 pi, with Newton allowed
+    only 3 iterations per step and steps no smaller than 0.02: the
+    continuation cannot advance.  The error says where it stopped and hands
+    back the last converged state (here the reference)."""
+    mesh = shapes.rectangle(16, 1, lx=1.0, ly=0.05)
+    s = Shell(mesh, 0.01, NeoHookean(1.0, nu=0.0))
+    s.clamp(mesh.nodes_on_plane("x", 0.0))
+    s.rotate(mesh.nodes_on_plane("x", 1.0), rotation=[0, -2 * np.pi, 0])
+    with pytest.raises(SolveError, match="continuation failed beyond t = 0.0") as info:
+        s.solve(steps=8, verbose=False, max_iter=3, min_dt=0.02)
+    err = info.value
+    assert err.last_t == 0.0 and err.result.converged is False
+    np.testing.assert_allclose(err.result.r, mesh.vertices, atol=1e-14)
+    assert len(err.history.steps) > 1
+
+
+def test_inverted_elements_are_named():
+    """The centre node of a 2 x 2 patch pushed through its neighbours folds
+    the triangles around it: the evaluation names an inverted element."""
+    mesh = shapes.rectangle(2, 2)
+    s = Shell(mesh, 0.02, LAW)
+    s._setup()
+    s.set_parameter(1.0)
+    s.U[4, 0] = [2.0, 0.5, 0.0]          # node 4 is the centre (0.5, 0.5)
+    s.Y1[:] = 0.0
+    s.Y1[..., 2] = 1.0                   # directors continued from the reference side
+    with pytest.raises(EvaluationError, match=r"element \d+ \(nodes \[.*4.*\]\): inverted"):
+        s.evaluate(s.free_state(), 0)
