@@ -7,8 +7,8 @@ Observed displacement / reference at n x n elements on the symmetric part:
   pinched hemisphere  n = 16, 32, 64:  0.754, 0.984, 1.008
 Locking (clamped cylindrical panel, C E t^3 / q^2 against its converged value
 5.047): t/R = 1e-2 reaches 97 % at n = 16; t/R = 1e-3 at n = 64 (99 %);
-t/R = 1e-4 only at n = 128 (94 %): accurate once the element size is below
-about 1.5 sqrt(t R), as measured on the stand-in in shared/notes.
+t/R = 1e-4 only at n = 128 (94 %): accurate once the element size is about
+sqrt(t R) or smaller, as measured on the stand-in in shared/notes.
 """
 
 import sys
