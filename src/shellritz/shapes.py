@@ -136,3 +136,41 @@ def disc(nr, radius=1.0, perturb=0.0, seed=0):
     T[cr < 0] = T[cr < 0][:, [0, 2, 1]]
     X = np.c_[uv, np.zeros(len(uv))]
     return Mesh(X, T, normal=lambda Y: np.tile([0.0, 0, 1], (len(Y), 1)))
+
+
+def revolution(curve, s, nphi, phi=(0.0, np.pi / 2), pattern="alternate"):
+    """Surface of revolution about z of the meridian curve(s) -> (r, z, r', z')
+    at the node parameters s (a pole where r = 0 becomes one node), azimuth
+    over the range phi.  Normal r_phi x r_s (outward for a meridian running
+    upward), exact."""
+    s = np.asarray(s, dtype=np.float64)
+    r, z, dr, dz = (np.asarray(v, dtype=np.float64) for v in curve(s))
+    full = np.isclose(phi[1] - phi[0], 2 * np.pi)
+    ph = np.linspace(phi[0], phi[1], nphi + 1)[: nphi if full else nphi + 1]
+    m = len(ph)
+    scale = np.ptp(np.r_[r, z])
+    pole = np.abs(r) <= 1e-12 * scale
+    X, N, index = [], [], {}
+    for i in range(len(s)):
+        nvec = np.array([dz[i], 0.0, -dr[i]])
+        nvec /= np.linalg.norm(nvec)
+        for j in range(m if not pole[i] else 1):
+            c, sn = np.cos(ph[j]), np.sin(ph[j])
+            index[i, j] = len(X)
+            X.append([r[i] * c, r[i] * sn, z[i]])
+            N.append([nvec[0] * c, nvec[0] * sn, nvec[2]])
+    X, N = np.array(X), np.array(N)
+    node = lambda i, j: index[i, 0 if pole[i] else j % m]
+    T = []
+    for i in range(len(s) - 1):
+        for j in range(nphi):
+            a, b = node(i, j), node(i, j + 1)           # (s_i, phi_j), (s_i, phi_j+1)
+            c, d = node(i + 1, j + 1), node(i + 1, j)
+            # (phi, s) orientation: the normal r_phi x r_s
+            quads = [(a, b, c), (a, c, d)] if (i + j) % 2 == 0 or pattern != "alternate" else \
+                [(a, b, d), (b, c, d)]
+            for tri in quads:
+                if len(set(tri)) == 3:
+                    T.append(tri)
+    normals = {tuple(np.round(x, 12)): nn for x, nn in zip(X, N)}
+    return Mesh(X, np.array(T), normal=lambda Y: np.array([normals[tuple(np.round(y, 12))] for y in Y]))

@@ -171,15 +171,16 @@ class Shell:
         """
         return self._prescribe(nodes, position, rotation, slots=(0, 1, 2))
 
-    def pin(self, nodes, position=None):
-        """Fix positions only (a pinned support)."""
-        return self._prescribe(nodes, position, None, slots=(0,))
+    def pin(self, nodes, position=None, components="xyz"):
+        """Fix positions (a pinned support), or only some of their components
+        (e.g. components="z": a roller free in x and y)."""
+        return self._prescribe(nodes, position, None, slots=(0,), components=components)
 
     def rotate(self, nodes, rotation):
         """Prescribe only the tangent derivatives: a_i = R(t) T_i (positions free)."""
         return self._prescribe(nodes, None, rotation, slots=(1, 2))
 
-    def _prescribe(self, nodes, position, rotation, slots):
+    def _prescribe(self, nodes, position, rotation, slots, components="xyz"):
         n = self.mesh.n_nodes
         idx = _nodes(nodes, n)
         X0 = self.X[idx]
@@ -193,13 +194,14 @@ class Shell:
         else:
             w = np.asarray(rotation, float)
             rot = lambda t: _rotvec_to_matrix(t * w)
+        comp = ["xyz".index(c) for c in components]
         mask = np.zeros((n, 3, 3), bool)
         for s in slots:
-            mask[idx, s, :] = True
+            mask[idx, s, comp if s == 0 else slice(None)] = True
 
         def values(t, U):
             if 0 in slots:
-                U[idx, 0] = X0 + t * (target - X0)
+                U[np.ix_(idx, [0], comp)] = (X0 + t * (target - X0))[:, None, comp]
             R = rot(t)
             for s in slots:
                 if s > 0:
