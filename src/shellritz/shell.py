@@ -194,10 +194,12 @@ class Shell:
         else:
             w = np.asarray(rotation, float)
             rot = lambda t: _rotvec_to_matrix(t * w)
+        if not components or set(components) - set("xyz") or len(set(components)) != len(components):
+            raise ValueError(f"components must be distinct letters of 'xyz', got {components!r}")
         comp = ["xyz".index(c) for c in components]
         mask = np.zeros((n, 3, 3), bool)
         for s in slots:
-            mask[idx, s, comp if s == 0 else slice(None)] = True
+            mask[np.ix_(idx, [s], comp if s == 0 else [0, 1, 2])] = True
 
         def values(t, U):
             if 0 in slots:
