@@ -1,5 +1,5 @@
 """Shell engines against the radially symmetric 3D solution of a growing
-thick sphere loaded on its inner face (tests/thick_sphere.py, solved by
+thick sphere loaded on its inner face (shellritz.reference, solved by
 shooting to 1e-13).
 
 Neo-Hookean C = 1, D = 4; growth gamma_n = 1 (radial), gamma_t = 1.05 + 0.9 Z
@@ -18,8 +18,7 @@ Observed (axisymmetric engine, 128 elements, mesh converged to 1e-10):
   mesh size (error 1.35e-3, 3.4e-4 on levels 2, 3; ratio 4).
 """
 
-import sys
-from pathlib import Path
+from functools import partial
 
 import numpy as np
 import pytest
@@ -27,16 +26,30 @@ import pytest
 from shellritz import NeoHookean, Shell, shapes
 from shellritz.discretize.axisym import AxisymmetricShell
 
-sys.path.insert(0, str(Path(__file__).parent))
-from thick_sphere import thick_sphere_r0  # noqa: E402
+from shellritz.reference import thick_shell_r0
 
 C, D = 1.0, 4.0
 GN, G0, G1, QN = 1.0, 1.05, 0.9, 0.3
 HS = (0.2, 0.1, 0.05, 0.025)
 
 
-def test_reference_solver_reproduces_stress_free_growth():
-    assert thick_sphere_r0(0.1, C, D, 1.2, 1.2, 0.0) == pytest.approx(1.2, abs=1e-13)
+thick_sphere_r0 = partial(thick_shell_r0, "sphere")
+
+
+@pytest.mark.parametrize("kind", ["tube", "sphere"])
+def test_reference_solver_reproduces_stress_free_growth(kind):
+    assert thick_shell_r0(kind, 0.1, C, D, 1.2, 1.2) == pytest.approx(1.2, abs=1e-13)
+
+
+def test_reference_tube_matches_the_thin_membrane_limit():
+    """Plane-strain tube (radius 1, thickness h = 0.01) under a small outer
+    traction q: hoop membrane force q, so r0 - 1 = q / (h E'), with the
+    plane-strain modulus E' = E / (1 - nu^2) = 4 C (C + D) / (2 C + D) of the
+    linearized law (mu = C, lambda = D); corrections are O(h)."""
+    h, q = 0.01, 1e-7
+    r0 = thick_shell_r0("tube", h, C, D, 1.0, 1.0, q_outer=q)
+    E_plane = 4 * C * (C + D) / (2 * C + D)
+    assert (r0 - 1) == pytest.approx(q / (h * E_plane), rel=2 * h)
 
 
 def axisym_r0(h, load, n=128):
@@ -52,7 +65,7 @@ def axisym_r0(h, load, n=128):
 
 
 def errors(load):
-    kw = "q" if load == "dead" else "p"
+    kw = "q_inner" if load == "dead" else "p"
     return [axisym_r0(h, load) - thick_sphere_r0(h, C, D, GN, G0, G1, **{kw: QN * h}) for h in HS]
 
 
@@ -70,7 +83,7 @@ def test_follower_pressure_is_only_first_order():
 
 def test_triangle_engine_converges_to_the_3d_radius():
     h = 0.1
-    exact = thick_sphere_r0(h, C, D, GN, G0, G1, q=QN * h)
+    exact = thick_sphere_r0(h, C, D, GN, G0, G1, q_inner=QN * h)
     err = []
     for level in (2, 3):
         s = Shell(shapes.sphere(level), h, NeoHookean(C, D=D))

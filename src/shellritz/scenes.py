@@ -101,10 +101,11 @@ class RevolutionScene(_Scene):
 
     def _solve_dkt(self, level, n, steps, verbose, nphi=None):
         s = np.linspace(*self.s_range, n + 1)
-        nphi = nphi or max(2, n // 2)
-        mesh = shapes.revolution(self.curve, s, nphi, phi=(0.0, np.pi / 2))
+        if nphi is None:   # square elements on the widest ring
+            r_max = np.abs(self._sample(s)[0]).max()
+            nphi = max(1, int(round(r_max * np.pi / 2 / (s[1] - s[0]))))
+        mesh, sn = shapes.revolution(self.curve, s, nphi, phi=(0.0, np.pi / 2))
         X, N = mesh.vertices, mesh.normals
-        sn = self._node_s(mesh, s)
         ephi = np.c_[-X[:, 1], X[:, 0], 0 * X[:, 0]]
         rho = np.hypot(X[:, 0], X[:, 1])
         axis = rho < 1e-12
@@ -148,14 +149,6 @@ class RevolutionScene(_Scene):
         on = on[np.argsort(sn[on])]
         return r, len(sh.free), sn[on], np.hypot(r.r[on, 0], r.r[on, 1]), r.r[on, 2], \
             len(r.history.iterations)
-
-    def _node_s(self, mesh, s):
-        """Meridian parameter of every node (nearest node parameter)."""
-        r, z, _, _ = self._sample(s)
-        X = mesh.vertices
-        rho = np.hypot(X[:, 0], X[:, 1])
-        d = (rho[:, None] - r[None, :]) ** 2 + (X[:, 2, None] - z[None, :]) ** 2
-        return s[np.argmin(d, axis=1)]
 
 
 class StripScene(_Scene):

@@ -10,7 +10,7 @@ import numpy as np
 
 from .mesh import Mesh
 
-__all__ = ["rectangle", "cylinder", "sphere", "hemisphere", "disc"]
+__all__ = ["rectangle", "cylinder", "sphere", "hemisphere", "disc", "revolution"]
 
 
 def _grid_triangles(nu, nv, pattern="alternate", periodic_u=False):
@@ -138,39 +138,53 @@ def disc(nr, radius=1.0, perturb=0.0, seed=0):
     return Mesh(X, T, normal=lambda Y: np.tile([0.0, 0, 1], (len(Y), 1)))
 
 
-def revolution(curve, s, nphi, phi=(0.0, np.pi / 2), pattern="alternate"):
+def revolution(curve, s, nphi, phi=(0.0, np.pi / 2)):
     """Surface of revolution about z of the meridian curve(s) -> (r, z, r', z')
-    at the node parameters s (a pole where r = 0 becomes one node), azimuth
-    over the range phi.  Normal r_phi x r_s (outward for a meridian running
-    upward), exact."""
+    with node rings at the parameters s and azimuth over the range phi.
+
+    The widest ring gets nphi intervals; every other ring gets a number
+    proportional to its radius (at least one), so elements stay nearly
+    isotropic down to a pole (r = 0, a single node).  Returns the mesh, with
+    exact normals r_phi x r_s (outward for a meridian running upward), and the
+    meridian parameter s of every node.
+    """
     s = np.asarray(s, dtype=np.float64)
     r, z, dr, dz = (np.asarray(v, dtype=np.float64) for v in curve(s))
-    full = np.isclose(phi[1] - phi[0], 2 * np.pi)
-    ph = np.linspace(phi[0], phi[1], nphi + 1)[: nphi if full else nphi + 1]
-    m = len(ph)
-    scale = np.ptp(np.r_[r, z])
-    pole = np.abs(r) <= 1e-12 * scale
-    X, N, index = [], [], {}
+    span = phi[1] - phi[0]
+    full = np.isclose(span, 2 * np.pi)
+    pole = np.abs(r) <= 1e-12 * np.ptp(np.r_[r, z])
+    counts = np.where(pole, 0, np.maximum(1 if not full else 3, np.ceil(nphi * r / r.max() - 1e-9))).astype(int)
+    X, N, S, rings = [], [], [], []
     for i in range(len(s)):
-        nvec = np.array([dz[i], 0.0, -dr[i]])
-        nvec /= np.linalg.norm(nvec)
-        for j in range(m if not pole[i] else 1):
-            c, sn = np.cos(ph[j]), np.sin(ph[j])
-            index[i, j] = len(X)
-            X.append([r[i] * c, r[i] * sn, z[i]])
-            N.append([nvec[0] * c, nvec[0] * sn, nvec[2]])
-    X, N = np.array(X), np.array(N)
-    node = lambda i, j: index[i, 0 if pole[i] else j % m]
+        m = counts[i]
+        nodes = 1 if pole[i] else m if full else m + 1
+        ang = phi[0] + span * np.arange(nodes) / max(m, 1)
+        nvec = np.array([dz[i], -dr[i]]) / np.hypot(dz[i], dr[i])
+        rings.append((len(X) + np.arange(len(ang)), ang))
+        X += [[r[i] * np.cos(a), r[i] * np.sin(a), z[i]] for a in ang]
+        N += [[nvec[0] * np.cos(a), nvec[0] * np.sin(a), nvec[1]] for a in ang]
+        S += [s[i]] * len(ang)
     T = []
-    for i in range(len(s) - 1):
-        for j in range(nphi):
-            a, b = node(i, j), node(i, j + 1)           # (s_i, phi_j), (s_i, phi_j+1)
-            c, d = node(i + 1, j + 1), node(i + 1, j)
-            # (phi, s) orientation: the normal r_phi x r_s
-            quads = [(a, b, c), (a, c, d)] if (i + j) % 2 == 0 or pattern != "alternate" else \
-                [(a, b, d), (b, c, d)]
-            for tri in quads:
-                if len(set(tri)) == 3:
-                    T.append(tri)
-    normals = {tuple(np.round(x, 12)): nn for x, nn in zip(X, N)}
-    return Mesh(X, np.array(T), normal=lambda Y: np.array([normals[tuple(np.round(y, 12))] for y in Y]))
+    for (ia, aa), (ib, ab) in zip(rings[:-1], rings[1:]):
+        T += _stitch(ia, aa, ib, ab, full, span)
+    N = np.array(N)
+    return Mesh(np.array(X), np.array(T), normal=lambda Y: N), np.array(S)
+
+
+def _stitch(ia, aa, ib, ab, full, span):
+    """Triangles between two node rings (ids ia, ib at azimuths aa, ab; the
+    second at the larger s), advancing on whichever ring has the nearer next
+    azimuth.  Orientation (phi, s): (a_j, a_j+1, b_k) and (a_j, b_k+1, b_k)."""
+    if full:      # close the rings: repeat the first node at phi + 2 pi
+        ia, aa = np.r_[ia, ia[:1]], np.r_[aa, aa[:1] + span]
+        ib, ab = np.r_[ib, ib[:1]], np.r_[ab, ab[:1] + span]
+    T, j, k = [], 0, 0
+    while j < len(ia) - 1 or k < len(ib) - 1:
+        advance_a = k == len(ib) - 1 or (j < len(ia) - 1 and aa[j + 1] <= ab[k + 1])
+        if advance_a:
+            T.append((ia[j], ia[j + 1], ib[k]))
+            j += 1
+        else:
+            T.append((ia[j], ib[k + 1], ib[k]))
+            k += 1
+    return [t for t in T if len(set(t)) == 3]
