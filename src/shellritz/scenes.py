@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import shapes
+from .materials import NeoHookean
 from .discretize.axisym import AxisymmetricShell
 from .discretize.planestrain import PlaneStrainShell
 from .shell import Shell
@@ -66,7 +67,16 @@ class _Scene:
         r, z, dr, dz = (np.asarray(v, dtype=np.float64) for v in self.curve(s))
         return r, z, dr, dz
 
+    methods = ()
+
     def solve(self, method, level="consistent", n=32, steps=4, verbose=False, **kw):
+        """Solve with a discretization from ``self.methods`` at a model level,
+        n elements along the curve (the triangle version of a shell of
+        revolution also takes ``nphi``, intervals on the widest quarter ring,
+        default: square elements there)."""
+        if method not in self.methods:
+            raise ValueError(f"{type(self).__name__} can be solved by {' or '.join(self.methods)}, "
+                             f"not {method!r}")
         t = time.perf_counter()
         res, dofs, s, a, b, its = getattr(self, "_solve_" + method)(level, n, steps, verbose, **kw)
         return SceneResult(method, level, n, dofs, time.perf_counter() - t, s, a, b, its, res)
@@ -76,6 +86,8 @@ class RevolutionScene(_Scene):
     """Shell of revolution: curve(s) -> (r, z, r', z') over s_range; the ends
     are poles (r = 0: regular through the axis) unless given in ``ends``
     ('free' | 'clamp' | 'symmetry_z')."""
+
+    methods = ("axisym", "dkt")
 
     def __init__(self, *args, ends=("pole", "pole"), **kw):
         super().__init__(*args, **kw)
@@ -156,6 +168,8 @@ class StripScene(_Scene):
     s_range; ``ends``: 'symmetry' (mirror plane x = const with z fixed there,
     removes rigid motions) | 'free' | 'clamp'."""
 
+    methods = ("planestrain", "dkt")
+
     def __init__(self, *args, ends=("symmetry", "free"), width=0.1, **kw):
         super().__init__(*args, **kw)
         self.ends = ends
@@ -203,3 +217,19 @@ class StripScene(_Scene):
         on = mesh.nodes_on_plane("y", 0.0)
         on = on[np.argsort(X[on, 0])]
         return res, len(sh.free), X[on, 0], res.r[on, 0], res.r[on, 2], len(res.history.iterations)
+
+
+def invagination(thickness=0.1, nu=0.4, compression=0.4, extension=0.2, gradient=-1.0,
+                 centre=0.45 * np.pi, width=0.08 * np.pi):
+    """A spherical cell sheet (radius 1, the paper's section 6: h = 0.1,
+    nu = 0.4, neo-Hookean, growth of the form eq:gg) folding inwards along a
+    band: with b(s) = exp(-((s - centre)/width)^2) over the polar angle s from
+    the bottom pole, azimuthal growth gamma1 = 1 - compression b, meridional
+    gamma2 = 1 + extension b + Z gradient b.  The defaults form an
+    equatorial furrow (radius down to 0.665)."""
+    bump = lambda s: np.exp(-((s - centre) / width) ** 2)
+    sphere = lambda s: (np.sin(s), 1 - np.cos(s), np.cos(s), np.sin(s))
+    return RevolutionScene(sphere, (0.0, np.pi), thickness, NeoHookean(1.0, nu=nu),
+                           gamma1=lambda s: 1 - compression * bump(s),
+                           gamma2=lambda s: 1 + extension * bump(s),
+                           gamma2_z=lambda s: gradient * bump(s))
