@@ -19,6 +19,9 @@ the step becomes too small a :class:`SolveError` is raised that carries the
 last converged state.
 """
 
+import contextlib
+import os
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -69,6 +72,23 @@ class SolveHistory:
     final_shift: float = 0.0
 
 
+@contextlib.contextmanager
+def _c_stderr_silenced():
+    """CHOLMOD writes a warning to the process's stderr (file descriptor 2)
+    whenever a factorization meets a non-positive pivot; cholesky_solve
+    expects that and shifts, so the message would only mislead."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
 def cholesky_solve(K, rhs, shift=0.0):
     """Solve (K + shift I) x = rhs with CHOLMOD (cholespy); K: lower triangle, CSR.
 
@@ -84,8 +104,9 @@ def cholesky_solve(K, rhs, shift=0.0):
     while True:
         Kt = K if shift == 0.0 else (K + eye * shift).tocsr()
         try:
-            solver = CholeskySolverD(n, Kt.indptr.astype(np.int32), Kt.indices.astype(np.int32),
-                                     np.ascontiguousarray(Kt.data), MatrixType.CSR)
+            with _c_stderr_silenced():
+                solver = CholeskySolverD(n, Kt.indptr.astype(np.int32), Kt.indices.astype(np.int32),
+                                         np.ascontiguousarray(Kt.data), MatrixType.CSR)
             x = np.zeros(n)
             solver.solve(np.ascontiguousarray(rhs, dtype=np.float64), x)
             if np.all(np.isfinite(x)):
