@@ -20,6 +20,7 @@ last converged state.
 """
 
 import contextlib
+import ctypes
 import os
 import sys
 import time
@@ -72,19 +73,29 @@ class SolveHistory:
     final_shift: float = 0.0
 
 
+def _c_stdio_flush():
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError, TypeError):     # no C runtime symbols (e.g. Windows)
+        pass
+
+
 @contextlib.contextmanager
-def _c_stderr_silenced():
-    """CHOLMOD writes a warning to the process's stderr (file descriptor 2)
-    whenever a factorization meets a non-positive pivot; cholesky_solve
-    expects that and shifts, so the message would only mislead."""
-    sys.stderr.flush()
-    saved = os.dup(2)
+def _cholmod_silenced():
+    """CHOLMOD prints a warning with C printf (file descriptor 1) whenever a
+    factorization meets a non-positive pivot; cholesky_solve expects that and
+    shifts, so the message would only mislead.  Its buffered output is
+    flushed into /dev/null before the descriptor is restored."""
+    sys.stdout.flush()
+    _c_stdio_flush()
+    saved = os.dup(1)
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
-        os.dup2(devnull, 2)
+        os.dup2(devnull, 1)
         yield
     finally:
-        os.dup2(saved, 2)
+        _c_stdio_flush()
+        os.dup2(saved, 1)
         os.close(saved)
         os.close(devnull)
 
@@ -104,7 +115,7 @@ def cholesky_solve(K, rhs, shift=0.0):
     while True:
         Kt = K if shift == 0.0 else (K + eye * shift).tocsr()
         try:
-            with _c_stderr_silenced():
+            with _cholmod_silenced():
                 solver = CholeskySolverD(n, Kt.indptr.astype(np.int32), Kt.indices.astype(np.int32),
                                          np.ascontiguousarray(Kt.data), MatrixType.CSR)
             x = np.zeros(n)
