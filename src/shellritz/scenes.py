@@ -63,6 +63,21 @@ class _Scene:
         self.q_plus, self.q_minus = q_plus, q_minus
         self.p = pressure
 
+    def _line_engine(self, cls, level, n):
+        """The 1D engine on n elements with growth, tractions and pressure."""
+        eng = cls(np.linspace(*self.s_range, n + 1), self.curve, self.h, self.law, level)
+        eng.set_stretch_growth(*self.gamma)
+        in_plane = lambda q: None if q is None else (lambda s: np.c_[q(s)[0], 0 * s, q(s)[1]])
+        eng.face_tractions(in_plane(self.q_plus), in_plane(self.q_minus))
+        if self.p:
+            eng.pressure(self.p)
+        return eng
+
+    @staticmethod
+    def _line_solution(eng, steps, verbose):
+        r = eng.solve(steps=steps, verbose=verbose)
+        return r, len(eng.free), eng.s[: eng.n_nodes], r.a, r.b, len(r.history.iterations)
+
     def _sample(self, s):
         r, z, dr, dz = (np.asarray(v, dtype=np.float64) for v in self.curve(s))
         return r, z, dr, dz
@@ -94,13 +109,7 @@ class RevolutionScene(_Scene):
         self.ends = ends
 
     def _solve_axisym(self, level, n, steps, verbose):
-        s = np.linspace(*self.s_range, n + 1)
-        eng = AxisymmetricShell(s, self.curve, self.h, self.law, level)
-        eng.set_stretch_growth(*self.gamma)
-        qfun = lambda q: (lambda ss: np.c_[q(ss)[0], 0 * ss, q(ss)[1]]) if q is not None else None
-        eng.face_tractions(qfun(self.q_plus), qfun(self.q_minus))
-        if self.p:
-            eng.pressure(self.p)
+        eng = self._line_engine(AxisymmetricShell, level, n)
         for end, kind in zip((0, -1), self.ends):
             if kind == "clamp":
                 eng.clamp(end)
@@ -108,8 +117,7 @@ class RevolutionScene(_Scene):
                 eng.symmetry(end, "b")
         if self.ends[0] in ("pole", "free"):
             eng.fix_coordinate(0, "b")            # no vertical translation
-        r = eng.solve(steps=steps, verbose=verbose)
-        return r, len(eng.free), eng.s[: eng.n_nodes], r.a, r.b, len(r.history.iterations)
+        return self._line_solution(eng, steps, verbose)
 
     def _solve_dkt(self, level, n, steps, verbose, nphi=None):
         s = np.linspace(*self.s_range, n + 1)
@@ -176,24 +184,21 @@ class StripScene(_Scene):
         self.width = width
 
     def _solve_planestrain(self, level, n, steps, verbose):
-        s = np.linspace(*self.s_range, n + 1)
-        eng = PlaneStrainShell(s, self.curve, self.h, self.law, level)
-        eng.set_stretch_growth(*self.gamma)
-        qfun = lambda q: (lambda ss: np.c_[q(ss)[0], 0 * ss, q(ss)[1]]) if q is not None else None
-        eng.face_tractions(qfun(self.q_plus), qfun(self.q_minus))
+        eng = self._line_engine(PlaneStrainShell, level, n)
         for end, kind in zip((0, -1), self.ends):
             if kind == "clamp":
                 eng.clamp(end)
             elif kind == "symmetry":
                 eng.symmetry(end, "a").fix_coordinate(end, "b")
-        r = eng.solve(steps=steps, verbose=verbose)
-        return r, len(eng.free), eng.s[: eng.n_nodes], r.a, r.b, len(r.history.iterations)
+        return self._line_solution(eng, steps, verbose)
 
     def _solve_dkt(self, level, n, steps, verbose):
         s0, s1 = self.s_range
         r, z, dr, dz = self._sample(np.array([s0, s1]))
         if not (np.allclose(z, 0) and np.allclose(dz, 0) and np.allclose(dr, 1)):
             raise NotImplementedError("the triangle version of a strip scene needs a straight reference x = s")
+        if self.p:
+            raise NotImplementedError("pressure on the triangle version of a strip: use face tractions")
         mesh = shapes.rectangle(n, 1, lx=s1 - s0, ly=self.width, origin=(s0, 0.0))
         X = mesh.vertices
         g = [f(X[:, 0]) for f in self.gamma]
