@@ -101,7 +101,9 @@ def test_strip_plane_strain_and_triangles_agree():
     assert err["dkt", 40] < 3e-3 and err["dkt", 20] / err["dkt", 40] > 6, err
 
 
-def test_scene_rejects_an_unknown_method():
+def test_scene_rejects_bad_input():
     scene, _ = cylinder("consistent")
     with pytest.raises(ValueError, match="axisym or dkt"):
         scene.solve("planestrain")
+    with pytest.raises(ValueError, match="ends must be two of"):
+        RevolutionScene(scene.curve, (0.0, 0.1), 0.1, CubicStretch(1.0), ends=("clmap", "free"))

@@ -36,6 +36,14 @@ def _fn(g):
     return g if callable(g) else (lambda s, g=g: np.full(np.shape(s), float(g)))
 
 
+def _check_ends(ends, allowed):
+    ends = tuple(ends)
+    bad = [e for e in ends if e not in allowed]
+    if len(ends) != 2 or bad:
+        raise ValueError(f"ends must be two of {allowed}, got {ends!r}")
+    return ends
+
+
 @dataclass
 class SceneResult:
     """Solved curve as samples: s, a(s) (radius / x), b(s) (height / z)."""
@@ -106,7 +114,7 @@ class RevolutionScene(_Scene):
 
     def __init__(self, *args, ends=("pole", "pole"), **kw):
         super().__init__(*args, **kw)
-        self.ends = ends
+        self.ends = _check_ends(ends, ("pole", "free", "clamp", "symmetry_z"))
 
     def _solve_axisym(self, level, n, steps, verbose):
         eng = self._line_engine(AxisymmetricShell, level, n)
@@ -180,7 +188,7 @@ class StripScene(_Scene):
 
     def __init__(self, *args, ends=("symmetry", "free"), width=0.1, **kw):
         super().__init__(*args, **kw)
-        self.ends = ends
+        self.ends = _check_ends(ends, ("symmetry", "free", "clamp"))
         self.width = width
 
     def _solve_planestrain(self, level, n, steps, verbose):
