@@ -84,3 +84,22 @@ def test_line_engine_rejects_bad_input():
     assert list(sph.poles) == [0, 8]
     with pytest.raises(ValueError, match="det G0"):
         sph.set_growth(G0=-np.eye(3))
+
+
+def test_growth_given_as_nodal_arrays_equals_the_function():
+    """Nodal arrays are interpolated by a cubic spline: for a smooth growth the
+    result converges to that of the function (spline error O(ds^4))."""
+    law = NeoHookean(1.0, nu=0.4)
+    g1 = lambda s: 1 - 0.2 * np.sin(s) ** 2
+    results = []
+    for how in ("function", "array"):
+        sph = AxisymmetricShell.sphere(32, 1.0, 0.1, law)
+        sph.set_stretch_growth(g1 if how == "function" else g1(sph.s), 1.0)
+        sph.fix_coordinate(0, "b")
+        results.append(sph.solve(steps=2, verbose=False))
+    assert np.abs(results[0].a - results[1].a).max() < 1e-6
+    assert np.abs(results[0].a - np.sin(results[0].s)).max() > 1e-2     # it did deform
+    with pytest.raises(ValueError, match="nodal values of shape"):
+        sph.set_stretch_growth(np.ones(5), 1.0)
+    with pytest.raises(ValueError, match="non-finite nodal values at nodes \\[3\\]"):
+        sph.set_stretch_growth(np.where(np.arange(33) == 3, np.nan, 1.0), 1.0)

@@ -130,25 +130,39 @@ class LineShell:
             self.W[q] = self.weight_factor * wg[q % GAUSS_POINTS] * (self.s[e + 1] - self.s[e]) * jac
 
     # ------------------------------------------------------------------ inputs
+    def _field(self, value, shape, name):
+        """A function of s from a constant of the given shape, a function of
+        s, or nodal values (n_nodes, *shape) — interpolated by a C2 cubic
+        spline through the nodes (periodic on a closed curve)."""
+        if callable(value):
+            return lambda s: np.asarray(value(s), dtype=np.float64).reshape((len(s),) + shape)
+        v = np.asarray(value, dtype=np.float64)
+        if v.shape == shape:
+            return lambda s: np.broadcast_to(v, (len(s),) + shape)
+        if v.shape != (self.n_nodes,) + shape:
+            raise ValueError(f"{name}: give a constant of shape {shape}, a function of s or nodal "
+                             f"values of shape {(self.n_nodes,) + shape}; got shape {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"{name}: non-finite nodal values at nodes "
+                             f"{np.unique(np.where(~np.isfinite(v))[0]).tolist()}")
+        from scipy.interpolate import CubicSpline
+        if self.closed:
+            spline = CubicSpline(self.s, np.concatenate([v, v[:1]]), bc_type="periodic")
+        else:
+            spline = CubicSpline(self.s, v)
+        return spline
+
     def set_growth(self, G0=None, G1=None, function=None):
-        """Growth G(Z) = G0 + Z G1 as functions of s (arrays (n, 3, 3) in the
-        global components of the section plane) or constants; ramped
-        G(t) = I + t (G - I).  Or function(t, s) -> (G0, G1) for any path."""
+        """Growth G(Z) = G0 + Z G1 in the global components of the section
+        plane: 3x3 constants, functions of s -> (n, 3, 3) or nodal arrays
+        (n_nodes, 3, 3); ramped G(t) = I + t (G - I).  Or function(t, s) ->
+        (G0, G1) for any path."""
         if function is not None:
             self._growth_ramp = False
             self._growth = function
             return self
-
-        def as_fn(G, default):
-            if G is None:
-                return lambda s: np.broadcast_to(default, (len(s), 3, 3))
-            if callable(G):
-                return lambda s: np.asarray(G(s), dtype=np.float64).reshape(len(s), 3, 3)
-            Gc = np.asarray(G, dtype=np.float64)
-            if Gc.shape != (3, 3):
-                raise ValueError("constant growth must be a 3x3 matrix (or give a function of s)")
-            return lambda s: np.broadcast_to(Gc, (len(s), 3, 3))
-        f0, f1 = as_fn(G0, np.eye(3)), as_fn(G1, np.zeros((3, 3)))
+        f0 = self._field(np.eye(3) if G0 is None else G0, (3, 3), "G0")
+        f1 = self._field(np.zeros((3, 3)) if G1 is None else G1, (3, 3), "G1")
         self._growth = lambda s: (f0(s), f1(s))
         self._growth_ramp = True
         self._check_growth(*self._growth(self.sq))
@@ -159,9 +173,9 @@ class LineShell:
         G = gamma1 e1 (x) e1 + gamma2 e2 (x) e2 + gamma_n n (x) n with
         gamma_k(s, Z) = gamma_k(s) + Z gamma_k_z(s); e1 = the second coordinate
         direction (azimuth or the straight generator), e2 = the curve tangent.
-        Each argument: a number or a function of s."""
-        f = [g if callable(g) else (lambda s, g=g: np.full(len(s), float(g)))
-             for g in (gamma1, gamma2, gamma_n, gamma1_z, gamma2_z)]
+        Each argument: a number, a function of s or nodal values."""
+        names = ("gamma1", "gamma2", "gamma_n", "gamma1_z", "gamma2_z")
+        f = [self._field(g, (), name) for g, name in zip((gamma1, gamma2, gamma_n, gamma1_z, gamma2_z), names)]
 
         def growth(s):
             a, b, da, db = self._ref_at(s)
