@@ -45,6 +45,7 @@ def leaf_scene(out_dir, steps=10, verbose=True):
         "newton_iterations": len(result.history.iterations),
         "continuation_steps": [[float(t), bool(ok)] for t, ok in result.history.steps],
         "stable": bool(result.history.stable),
+        "unstable_modes": result.history.unstable_modes,
         "height_range": [float(r[:, 2].min()), float(r[:, 2].max())],
     }
     (out_dir / "leaf.json").write_text(json.dumps(summary, indent=2))

@@ -1,4 +1,4 @@
-"""Newton's method with backtracking line search, sparse Cholesky solves and
+"""Newton's method with backtracking line search, sparse LDL^T solves and
 continuation in a load/growth parameter t in [0, 1].
 
 The solver works on a *problem* object (the DKT, axisymmetric and
@@ -19,15 +19,12 @@ the step becomes too small a :class:`SolveError` is raised that carries the
 last converged state.
 """
 
-import contextlib
-import ctypes
-import os
-import sys
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 
 class EvaluationError(RuntimeError):
@@ -69,61 +66,52 @@ class Iteration:
 class SolveHistory:
     iterations: list = field(default_factory=list)
     steps: list = field(default_factory=list)     # (t, converged, n_iterations)
-    stable: bool = True
-    final_shift: float = 0.0
+    stable: bool = True         # Hessian positive definite at the last converged state
+    unstable_modes: int = 0     # its number of negative eigenvalues (None: singular)
 
 
-def _c_stdio_flush():
-    try:
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError, TypeError):     # no C runtime symbols (e.g. Windows)
-        pass
+def factorize_if_positive_definite(K, shift=0.0):
+    """Sparse LDL^T factorization of the symmetric matrix A = K + shift I (K given
+    by its lower triangle, CSR), or None if A is not positive definite.
 
-
-@contextlib.contextmanager
-def _cholmod_silenced():
-    """CHOLMOD prints a warning with C printf (file descriptor 1) whenever a
-    factorization meets a non-positive pivot; cholesky_solve expects that and
-    shifts, so the message would only mislead.  Its buffered output is
-    flushed into /dev/null before the descriptor is restored."""
-    sys.stdout.flush()
-    _c_stdio_flush()
-    saved = os.dup(1)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        yield
-    finally:
-        _c_stdio_flush()
-        os.dup2(saved, 1)
-        os.close(saved)
-        os.close(devnull)
-
-
-def cholesky_solve(K, rhs, shift=0.0):
-    """Solve (K + shift I) x = rhs with CHOLMOD (cholespy); K: lower triangle, CSR.
-
-    A failed factorization means K + shift I is not positive definite: the
-    shift is raised (from 1e-8 of the largest diagonal entry, x10 per try) and
-    the solve retried.  Returns (x, shift used).
+    SuperLU (scipy) in symmetric mode with diagonal pivots only and the
+    minimum-degree ordering of A^T + A computes A = P^T L U P with U = D L^T,
+    so by Sylvester's law of inertia A is positive definite exactly when every
+    pivot diag(U) is positive.  (Measured on DKT Hessians with 7k-180k DOFs:
+    as fast as to 2.6x faster than CHOLMOD through cholespy, and cholespy leaks
+    the whole factor on every failed, i.e. not positive definite,
+    factorization.)  Returns (factorization or None, number of negative
+    pivots or None when A is singular).
     """
-    from cholespy import CholeskySolverD, MatrixType
+    A = (K + sp.tril(K, -1).T).tocsc()
+    if shift:
+        A = A + shift * sp.identity(A.shape[0], format="csc")
+    try:
+        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options=dict(SymmetricMode=True))
+    except RuntimeError:                 # an exactly zero pivot: A singular
+        return None, None
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return None, None                # pivoting left the diagonal: no inertia
+    negative = int(np.count_nonzero(~(lu.U.diagonal() > 0.0)))
+    return (lu if negative == 0 else None), negative
 
-    n = K.shape[0]
+
+def shifted_solve(K, rhs, shift=0.0):
+    """Solve (K + shift I) x = rhs with K + shift I positive definite; K: lower
+    triangle, CSR.
+
+    Where K + shift I is not positive definite the shift is raised (from 1e-8
+    of the largest diagonal entry, x10 per try) and the solve retried.
+    Returns (x, shift used).
+    """
     scale = max(np.abs(K.diagonal()).max(), 1e-300)
-    eye = sp.identity(n, format="csr")
     while True:
-        Kt = K if shift == 0.0 else (K + eye * shift).tocsr()
-        try:
-            with _cholmod_silenced():
-                solver = CholeskySolverD(n, Kt.indptr.astype(np.int32), Kt.indices.astype(np.int32),
-                                         np.ascontiguousarray(Kt.data), MatrixType.CSR)
-            x = np.zeros(n)
-            solver.solve(np.ascontiguousarray(rhs, dtype=np.float64), x)
+        lu, _ = factorize_if_positive_definite(K, shift)
+        if lu is not None:
+            x = lu.solve(np.asarray(rhs, dtype=np.float64))
             if np.all(np.isfinite(x)):
                 return x, shift
-        except ValueError:
-            pass
         shift = max(1e-8 * scale, 10.0 * shift)
         if shift > 1e3 * scale:
             raise EvaluationError("Hessian could not be made positive definite by shifting")
@@ -151,9 +139,9 @@ def newton(problem, t, opts, history, g_ref):
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= xtol:
-            _, final = cholesky_solve(K, np.zeros(len(x))) if len(x) else (None, 0.0)
-            history.final_shift = final
-            history.stable = final == 0.0
+            _, negative = factorize_if_positive_definite(K) if len(x) else (None, 0)
+            history.stable = negative == 0
+            history.unstable_modes = negative
             return True
         # stagnation: |g| does not fall and neither does the energy (escaping an
         # unstable state lowers E while |g| grows: that is progress)
@@ -164,7 +152,7 @@ def newton(problem, t, opts, history, g_ref):
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e})")
             break
         # try a smaller shift than last time (Levenberg-Marquardt style)
-        p, shift = cholesky_solve(K, -g, 0.1 * shift if shift > 0 else 0.0)
+        p, shift = shifted_solve(K, -g, 0.1 * shift if shift > 0 else 0.0)
         slope = g @ p
         # at the round-off floor: the predicted decrease -g.p/2 is below the
         # round-off of the energy and the last full step no longer reduced |g|

@@ -8,7 +8,7 @@ The unknown curve is (a(s), b(s)) — (radius, height) of a meridian, or
 affinely to the 15 local variables v of the point kernel; the reference
 geometry comes from the same interpolation of the reference curve, so the
 reference state is exactly stress free.  The same point kernel, levels,
-Newton-continuation solver and CHOLMOD solves as the triangle engine.
+Newton-continuation solver and sparse LDL^T solves as the triangle engine.
 """
 
 import time
