@@ -196,8 +196,8 @@ def meridian_error(s, a, b, ref):
 
 
 # ---------------------------------------------------------------- 3D
-FE3D_SIZES = {"tube": (4, 8, 16, 32), "strip": (8, 16, 32, 64), "sphere": (2, 4, 8, 16),
-              "invagination": (8, 16, 32, 64)}
+FE3D_SIZES = {"tube": (4, 8, 16, 32), "strip": (8, 16, 32, 64, 128), "sphere": (2, 4, 8, 16, 32),
+              "invagination": (16, 32, 48, 64, 96)}
 
 
 def fe3d_rows():
@@ -205,7 +205,7 @@ def fe3d_rows():
     rows, runs = [], {}
     for scene, sizes in FE3D_SIZES.items():
         for n in sizes:
-            out = fe3d.solve(scene, n)
+            out = timed(lambda: fe3d.solve(scene, n))
             runs[scene, n] = out
             print(f"3d {scene:12s} n={n:4d} dofs={out['dofs']:7d} wall={out['wall_s']:8.2f}s "
                   f"its={out['iterations']}", flush=True)
