@@ -181,7 +181,9 @@ def shell_rows(invagination_reference):
     for level in LEVELS:
         for n in (16, 32, 64, 128):
             add("invagination", "axisym", level, n, scene_run(inv, "axisym", level, n, measure, steps=8))
-        for n in (16, 32, 64):
+        # membrane: compressive growth without bending stiffness wrinkles at the
+        # mesh scale (hundreds of Newton iterations, no converging answer): two sizes
+        for n in (16, 32) if level == "membrane" else (16, 32, 64):
             add("invagination", "dkt", level, n, scene_run(inv, "dkt", level, n, measure, steps=8))
     return rows
 
@@ -236,6 +238,7 @@ def chart(rows):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
     scenes = ["tube", "strip", "sphere", "invagination"]
     fig, axes = plt.subplots(2, 2, figsize=(11, 9))
     for ax, scene in zip(axes.ravel(), scenes):
@@ -250,6 +253,7 @@ def chart(rows):
                 ax.loglog([r["wall_s"] for r in sel], [max(r["error"], 1e-12) for r in sel],
                           LINE[level], color=color, marker=marker, ms=4,
                           label=method if level == "3d" else f"{method} {level}")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.axhline(1e-3, color="0.7", lw=0.8)
         ax.set_title(scene)
         ax.set_xlabel("wall time (s, 2 threads)")
@@ -259,23 +263,29 @@ def chart(rows):
     fig.savefig(RESULTS / "accuracy_vs_cost.png", dpi=110)
 
 
-def summary(rows):
-    """Per scene: the cheapest run reaching 1e-3, and the cheapest 3D run that does."""
+def summary(rows, target=1e-3):
+    """Per scene: the cheapest shell run reaching the target error and the
+    cheapest 3D run that does; where no shell run reaches it, the same at the
+    best error the shell runs reach (the model error)."""
     lines = []
     for scene in ("tube", "strip", "sphere", "invagination"):
-        ok = [r for r in rows if r["scene"] == scene and r["error"] <= 1e-3]
-        shell = min((r for r in ok if r["method"] != "3d"), key=lambda r: r["wall_s"], default=None)
-        solid = min((r for r in ok if r["method"] == "3d"), key=lambda r: r["wall_s"], default=None)
-        if shell is None:
-            lines.append(f"{scene}: no shell run reaches 1e-3")
-            continue
-        text = (f"{scene}: {shell['method']} {shell['level']} n={shell['n']} "
-                f"error {shell['error']:.1e} in {shell['wall_s']:.3f} s")
-        if solid is not None:
-            text += (f"; 3D n={solid['n']} error {solid['error']:.1e} in {solid['wall_s']:.1f} s: "
-                     f"speed-up {solid['wall_s'] / shell['wall_s']:.0f}x")
+        shell = [r for r in rows if r["scene"] == scene and r["method"] != "3d"]
+        solid = [r for r in rows if r["scene"] == scene and r["method"] == "3d"]
+        goal = target
+        best = min(r["error"] for r in shell)
+        text = f"{scene}: "
+        if best > target:
+            goal = 1.05 * best
+            text += f"no shell run reaches {target:.0e} (best {best:.1e}); at {goal:.1e}: "
+        cheap = min((r for r in shell if r["error"] <= goal), key=lambda r: r["wall_s"])
+        text += (f"{cheap['method']} {cheap['level']} n={cheap['n']} error {cheap['error']:.1e} "
+                 f"in {cheap['wall_s']:.3f} s")
+        ref = min((r for r in solid if r["error"] <= goal), key=lambda r: r["wall_s"], default=None)
+        if ref is None:
+            text += f"; no 3D run reaches {goal:.1e}"
         else:
-            text += "; no 3D run reaches 1e-3"
+            text += (f"; 3D n={ref['n']} error {ref['error']:.1e} in {ref['wall_s']:.2f} s: "
+                     f"speed-up {ref['wall_s'] / cheap['wall_s']:.0f}x")
         lines.append(text)
     return lines
 
