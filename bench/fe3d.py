@@ -548,8 +548,8 @@ class _LinearSolver:
     stays below the quadratic Newton error, so the convergence is that of
     the exact Newton method with the exact tangent."""
 
-    def __init__(self, reuse=True, max_krylov=25):
-        self.reuse, self.max_krylov = reuse, max_krylov
+    def __init__(self, max_krylov=25):
+        self.max_krylov = max_krylov
         self.fsolve = None
         self.nfact = 0
         self.nkrylov = 0
@@ -558,7 +558,7 @@ class _LinearSolver:
         bn = np.linalg.norm(b)
         if bn == 0:
             return np.zeros_like(b)
-        if self.reuse and self.fsolve is not None:
+        if self.fsolve is not None:
             its = [0]
 
             def count(_):
@@ -853,8 +853,7 @@ _STEPS = {"tube": (0.5, 1.0), "sphere": (0.5, 1.0), "strip": (0.1, 0.25),
           "invagination": (0.1, 0.25)}
 
 
-def solve(scene: str, n: int, verbose: bool = False, m: int = None,
-          reuse: bool = True) -> dict:
+def solve(scene: str, n: int, verbose: bool = False, m: int = None) -> dict:
     """Solve one scene on the mesh of resolution n.
 
     n = number of elements along: the quarter arc (tube), a quarter great
@@ -869,7 +868,7 @@ def solve(scene: str, n: int, verbose: bool = False, m: int = None,
     solid, mesh = _setup(scene, n, m)
     t_setup = time.perf_counter() - t0
     dt0, dtmax = _STEPS[scene]
-    lin = _LinearSolver(reuse=reuse)
+    lin = _LinearSolver()
     U, its, steps, cuts = _continuation(solid, dt0, dtmax, lin,
                                         verbose=verbose)
     out = _outputs(scene, solid, mesh, U)

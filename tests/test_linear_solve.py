@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shellritz.solve import EvaluationError, factorize_if_positive_definite, shifted_solve
+from shellritz.solve import (EvaluationError, factorize_if_positive_definite, shifted_solve,
+                             symmetric_from_lower)
 
 
 def lower(A):
@@ -22,7 +23,9 @@ def random_symmetric(n, eigenvalues, seed=0):
 def test_inertia_counts_negative_eigenvalues(n_negative):
     ev = np.linspace(0.5, 4.0, 12)
     ev[:n_negative] *= -1
-    lu, negative = factorize_if_positive_definite(lower(random_symmetric(12, ev)))
+    A = random_symmetric(12, ev)
+    assert np.array_equal(symmetric_from_lower(lower(A)).toarray(), np.tril(A) + np.tril(A, -1).T)
+    lu, negative = factorize_if_positive_definite(sp.csc_matrix(A))
     assert negative == n_negative
     assert (lu is not None) == (n_negative == 0)
 
@@ -30,14 +33,14 @@ def test_inertia_counts_negative_eigenvalues(n_negative):
 def test_positive_definite_solve_is_exact():
     A = random_symmetric(30, np.linspace(0.1, 10, 30), seed=1)
     b = np.arange(30.0)
-    lu, negative = factorize_if_positive_definite(lower(A))
+    lu, negative = factorize_if_positive_definite(sp.csc_matrix(A))
     assert negative == 0
     assert np.linalg.norm(A @ lu.solve(b) - b) <= 1e-12 * np.linalg.norm(b)
 
 
 def test_singular_matrix_is_not_positive_definite():
     A = np.diag([1.0, 0.0, 2.0])
-    lu, _ = factorize_if_positive_definite(lower(A))
+    lu, _ = factorize_if_positive_definite(sp.csc_matrix(A))
     assert lu is None
 
 

@@ -70,9 +70,14 @@ class SolveHistory:
     unstable_modes: int = 0     # its number of negative eigenvalues (None: singular)
 
 
-def factorize_if_positive_definite(K, shift=0.0):
-    """Sparse LDL^T factorization of the symmetric matrix A = K + shift I (K given
-    by its lower triangle, CSR), or None if A is not positive definite.
+def symmetric_from_lower(K):
+    """The full symmetric matrix (CSC) of its lower triangle K (CSR)."""
+    return (K + sp.tril(K, -1).T).tocsc()
+
+
+def factorize_if_positive_definite(A, shift=0.0):
+    """Sparse LDL^T factorization of the symmetric matrix A + shift I (A full,
+    CSC), or None if it is not positive definite.
 
     SuperLU (scipy) in symmetric mode with diagonal pivots only and the
     minimum-degree ordering of A^T + A computes A = P^T L U P with U = D L^T,
@@ -83,7 +88,6 @@ def factorize_if_positive_definite(K, shift=0.0):
     factorization.)  Returns (factorization or None, number of negative
     pivots or None when A is singular).
     """
-    A = (K + sp.tril(K, -1).T).tocsc()
     if shift:
         A = A + shift * sp.identity(A.shape[0], format="csc")
     try:
@@ -106,8 +110,9 @@ def shifted_solve(K, rhs, shift=0.0):
     Returns (x, shift used).
     """
     scale = max(np.abs(K.diagonal()).max(), 1e-300)
+    A = symmetric_from_lower(K)
     while True:
-        lu, _ = factorize_if_positive_definite(K, shift)
+        lu, _ = factorize_if_positive_definite(A, shift)
         if lu is not None:
             x = lu.solve(np.asarray(rhs, dtype=np.float64))
             if np.all(np.isfinite(x)):
@@ -139,7 +144,8 @@ def newton(problem, t, opts, history, g_ref):
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= xtol:
-            _, negative = factorize_if_positive_definite(K) if len(x) else (None, 0)
+            _, negative = (factorize_if_positive_definite(symmetric_from_lower(K))
+                           if len(x) else (None, 0))
             history.stable = negative == 0
             history.unstable_modes = negative
             return True
