@@ -172,3 +172,28 @@ def test_errors_are_reported_not_nan():
         evaluate_point(law, ref, ref, -1.0)
     with pytest.raises(ValueError, match="level"):
         evaluate_point(law, ref, ref, H_THICK, level="shell")
+
+
+def test_small_spd_helpers_solve_like_numpy():
+    """chol3 / chol3_inverse / mv3 (every solve with the acoustic tensor after
+    the y1 Newton) against numpy, on well- and badly-conditioned SPD matrices."""
+    from shellritz.kernels.small import chol3, chol3_inverse, chol3_solve, mv3
+    rng = np.random.default_rng(3)
+    for cond in (1.0, 1e3, 1e8):
+        Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+        B = Q @ np.diag([1.0, np.sqrt(cond), cond]) @ Q.T
+        lo, inv = np.zeros((3, 3)), np.zeros((3, 3))
+        assert chol3(B, lo)
+        chol3_inverse(lo, inv)
+        ref = np.linalg.inv(B)
+        assert np.abs(inv - ref).max() <= 1e-13 * cond * np.abs(ref).max()
+        assert np.array_equal(inv, inv.T)
+        x, y = rng.standard_normal(3), np.zeros(3)
+        mv3(inv, x, y)
+        z = np.zeros(3)
+        chol3_solve(lo, x, z)
+        assert np.allclose(y, np.linalg.solve(B, x), rtol=1e-13 * cond, atol=0)
+        assert np.allclose(y, z, rtol=1e-13 * cond, atol=0)
+        mv3(inv, x, x)                    # aliasing in/out
+        assert np.array_equal(x, y)
+    assert not chol3(-np.eye(3), lo)

@@ -45,7 +45,7 @@ from numba import njit, prange
 
 from .material import (M_AA, S_W, V_P, mat_combination, mat_d3, mat_d3_vec,
                        mat_prepare, new_state)
-from .small import chol3, chol3_solve, cross, inv3
+from .small import chol3, chol3_inverse, chol3_solve, cross, inv3, mv3
 
 LEVEL_MEMBRANE = 0
 LEVEL_BENDING = 1
@@ -218,7 +218,7 @@ def _mm(a, b, out):
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _slot(U, C, out):
     """out[3 i + J] = sum_p U[i, p] C[p, J]."""
     for i in range(3):
@@ -229,7 +229,7 @@ def _slot(U, C, out):
             out[3 * i + J] = s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_to_xi(G, C, coef, out):
     """out[3 p + i] += coef sum_J G[3 i + J] C[p, J]  (slot gradient -> xi)."""
     for p in range(9):
@@ -240,7 +240,7 @@ def _add_to_xi(G, C, coef, out):
             out[3 * p + i] += coef * s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _matvec9(M, x, out):
     for p in range(9):
         s = 0.0
@@ -249,7 +249,7 @@ def _matvec9(M, x, out):
         out[p] = s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dot9(a, b):
     s = 0.0
     for p in range(9):
@@ -257,7 +257,7 @@ def _dot9(a, b):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _slot_jacobian(C, Zv, ncol, out):
     """out[(i,J), q] = d slot / d v_q with y2 fixed (blocks 0..4 direct,
     5..7 via Zv), for the first ncol columns q (the others are zero)."""
@@ -276,7 +276,7 @@ def _slot_jacobian(C, Zv, ncol, out):
                         out[r, q] += c * Zv[3 * p + i, q]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _h_j(H, Jb, nb, out):
     """out[:, :nb] = H Jb[:, :nb] (9x9 times 9xnb)."""
     for p in range(9):
@@ -287,7 +287,7 @@ def _h_j(H, Jb, nb, out):
             out[p, q] = s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_jt(Ja, na, T, nb, out):
     """out[:na, :nb] += Ja[:, :na]^T T[:, :nb]."""
     for a in range(na):
@@ -298,7 +298,7 @@ def _add_jt(Ja, na, T, nb, out):
             out[a, q] += s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _right_map(M, Q, out):
     """out[p, (k,L)] = sum_J M[p, (k,J)] Q[L, J]  (M composed with dA -> dA Q)."""
     for p in range(9):
@@ -396,7 +396,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     CA, U, S, vec, sv, B3 = sc[7], sc[8], sc[9], sc[10], sc[11], sc[12]
     M9 = sc[13]
     G0L, G1L, Gi, M1, N1, wk = gr[0], gr[1], gr[2], gr[3], gr[4], gr[7]
-    B, LB = B3[0], B3[1]
+    B, LB, Binv = B3[0], B3[1], B3[2]
     nan = np.nan
     # growth in the local frame
     _to_local(G0, E, G0L)
@@ -507,6 +507,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     W = mp[S_W]
     P = mv[V_P]
     AA = mm[M_AA]
+    chol3_inverse(LB, Binv)      # every later solve with B is a product with Binv
 
     if not bend:
         L = cW * W - h * (m[0] * y1[0] + m[1] * y1[1] + m[2] * y1[2])
@@ -514,7 +515,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
             y2[k] = 0.0
         if mode == MODE_ENERGY:
             return L, OK
-        _membrane_derivatives(mode, cW, g0, CA[0], D0, P, AA, LB, grad, hess, sc)
+        _membrane_derivatives(mode, cW, g0, CA[0], D0, P, AA, Binv, grad, hess, sc)
         return L, OK
 
     # ---- Y_a (surface derivative of the membrane condition) -------------
@@ -526,7 +527,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         for k in range(3):
             rhs[k] = -(g0 * (t1a[a] * _dot9(P, D0[k]) + _dot9(tmp, D0[k])
                              + _dot9(P, D1[3 * a + k])) - dm[a, k])
-        chol3_solve(LB, rhs, rhs)
+        mv3(Binv, rhs, rhs)
         for i in range(3):
             U[i, 6 + a] = rhs[i]
         _slot(U, CA[2 + a], S[2 + a])
@@ -542,7 +543,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         pnk = _dot9(P, D0[k])
         pnn = P[3 * k] * nGN[0] + P[3 * k + 1] * nGN[1] + P[3 * k + 2] * nGN[2]
         rhs[k] = -g0 * ((t1 - 2.0 * cH * H) * pnk + _dot9(tmp, D0[k]) - pnn) + cq * qbar[k]
-    chol3_solve(LB, rhs, rhs)
+    mv3(Binv, rhs, rhs)
     for i in range(3):
         U[i, 8] = rhs[i]
         y2[i] = rhs[i]
@@ -619,7 +620,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for a in range(2):
         for k in range(3):
             rhs[k] = -Lx[z0 + 3 + 3 * a + k]
-        chol3_solve(LB, rhs, rhs)
+        mv3(Binv, rhs, rhs)
         for k in range(3):
             lam[3 + 3 * a + k] = rhs[k]
     for l in range(3):
@@ -628,7 +629,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
             for k in range(3):
                 s -= cx[3 + 3 * a + k, z0 + l] * lam[3 + 3 * a + k]
         rhs[l] = s
-    chol3_solve(LB, rhs, rhs)
+    mv3(Binv, rhs, rhs)
     for k in range(3):
         lam[k] = rhs[k]
     for q in range(NV):
@@ -645,7 +646,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for q in range(NV):
         for k in range(3):
             rhs[k] = -cx[k, q]
-        chol3_solve(LB, rhs, rhs)
+        mv3(Binv, rhs, rhs)
         for k in range(3):
             Zv[k, q] = rhs[k]
         for a in range(2):
@@ -654,7 +655,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
                 for l in range(3):
                     s -= cx[3 + 3 * a + k, z0 + l] * Zv[l, q]
                 rhs[k] = s
-            chol3_solve(LB, rhs, rhs)
+            mv3(Binv, rhs, rhs)
             for k in range(3):
                 Zv[3 + 3 * a + k, q] = rhs[k]
     # lambda-weighted directions: Xtot = X + g0 (Dl0 + sum_a (t1a Dla + D1la))
@@ -749,7 +750,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for q in range(NV):
         for k in range(3):
             rhs[k] = Ly[k, q]
-        chol3_solve(LB, rhs, rhs)
+        mv3(Binv, rhs, rhs)
         for a in range(NV):
             hess[a, q] -= f * (Ly[0, a] * rhs[0] + Ly[1, a] * rhs[1] + Ly[2, a] * rhs[2])
     return L, OK
@@ -839,7 +840,7 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, mi, B, L
 
 
 @njit(cache=True)
-def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, LB, grad, hess, sc):
+def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc):
     """Membrane level: L = cW W(A0) - h m.y1, envelope in y1 (multiplier 0)."""
     Lx = sc[14]
     for q in range(NXI):
@@ -861,13 +862,9 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, LB, grad, hess, sc):
         _matvec9(AA, D0[k], tmp)
         _add_to_xi(tmp, CA0, g0, cx[k])
     Zv = sc[16]
-    rhs = sc[25][3]
-    for q in range(NV):
-        for k in range(3):
-            rhs[k] = -cx[k, q]
-        chol3_solve(LB, rhs, rhs)
-        for k in range(3):
-            Zv[k, q] = rhs[k]
+    for k in range(3):
+        for q in range(NV):
+            Zv[k, q] = -(Binv[k, 0] * cx[0, q] + Binv[k, 1] * cx[1, q] + Binv[k, 2] * cx[2, q])
     Js = sc[17]
     _slot_jacobian(CA0, Zv, NX, Js[0])
     H = sc[13][4]

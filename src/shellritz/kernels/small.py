@@ -90,6 +90,36 @@ def chol3(b, out):
 
 
 @njit(cache=True)
+def chol3_inverse(lo, out):
+    """out = (L L^T)^{-1} from the Cholesky factor L (symmetric result).
+
+    The kernels solve with the same 3x3 matrix for many right-hand sides;
+    a matrix-vector product with the inverse avoids chains of divisions."""
+    i00 = 1.0 / lo[0, 0]
+    i11 = 1.0 / lo[1, 1]
+    i22 = 1.0 / lo[2, 2]
+    m10 = -lo[1, 0] * i00 * i11
+    m21 = -lo[2, 1] * i11 * i22
+    m20 = -(lo[2, 0] * i00 + lo[2, 1] * m10) * i22
+    # (L L^T)^{-1} = L^{-T} L^{-1}, L^{-1} = [[i00, 0, 0], [m10, i11, 0], [m20, m21, i22]]
+    out[0, 0] = i00 * i00 + m10 * m10 + m20 * m20
+    out[1, 1] = i11 * i11 + m21 * m21
+    out[2, 2] = i22 * i22
+    out[0, 1] = out[1, 0] = m10 * i11 + m20 * m21
+    out[0, 2] = out[2, 0] = m20 * i22
+    out[1, 2] = out[2, 1] = m21 * i22
+
+
+@njit(cache=True, inline="always")
+def mv3(a, x, out):
+    """out = a x for a 3x3 matrix (x may alias out)."""
+    x0, x1, x2 = x[0], x[1], x[2]
+    out[0] = a[0, 0] * x0 + a[0, 1] * x1 + a[0, 2] * x2
+    out[1] = a[1, 0] * x0 + a[1, 1] * x1 + a[1, 2] * x2
+    out[2] = a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
+
+
+@njit(cache=True)
 def chol3_solve(lo, rhs, out):
     """Solve (L L^T) x = rhs for one right-hand side (rhs may alias out)."""
     z0 = rhs[0] / lo[0, 0]
