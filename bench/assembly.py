@@ -5,16 +5,19 @@ Energy, gradient and Hessian assembly time against the number of triangles
 through-thickness gradient, a deformed curved state), on 2 threads; medians of
 repeated runs; compile time measured separately in a fresh process with an
 empty Numba cache.  The Hessian time includes the scatter into the sparse
-matrix of the free DOFs.
+matrix of the free DOFs.  Memory: the arrays the engine keeps between
+evaluations (pattern, element map, warm starts, ...) and the peak resident
+size of the process (it grows with the largest mesh so far).
 
 Writes bench/results/assembly.json (rows: n_triangles, energy_s, gradient_s,
-hessian_s) and bench/results/assembly.png.
+hessian_s, engine_mb, peak_rss_mb) and bench/results/assembly.png.
 Run:  python bench/assembly.py [--max 200000] [--repeats 5]
 """
 
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -88,9 +91,13 @@ def main():
         for mode, name in ((0, "energy_s"), (1, "gradient_s"), (2, "hessian_s")):
             row[name] = median(lambda: s.evaluate(x, mode), reps)
         row["hessian_triangles_per_s"] = ne / row["hessian_s"]
+        row["engine_mb"] = sum(v.nbytes for v in vars(s).values()
+                               if isinstance(v, np.ndarray)) / 2**20
+        row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**10
         rows.append(row)
         print(f"{ne:>7} triangles: energy {row['energy_s']:.3f} s, gradient {row['gradient_s']:.3f} s, "
-              f"Hessian {row['hessian_s']:.3f} s ({row['hessian_triangles_per_s']:,.0f} triangles/s)",
+              f"Hessian {row['hessian_s']:.3f} s ({row['hessian_triangles_per_s']:,.0f} triangles/s), "
+              f"engine {row['engine_mb']:.0f} MB, peak RSS {row['peak_rss_mb']:.0f} MB",
               flush=True)
         del s
     levels = {}

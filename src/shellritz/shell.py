@@ -21,11 +21,12 @@ import time
 import warnings
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
 from .discretize.dkt import rule
-from .kernels.assembly import assemble_dkt, scatter_gradient, scatter_hessian
+from .kernels.assembly import add_position_blocks, assemble_dkt, color_elements
 from .kernels.point import STATUS_TEXT
 from .materials import Law
 from .mesh import Mesh, MeshError
@@ -415,14 +416,14 @@ class Shell:
         self.Y1 = np.zeros((ne, nq, 3))
         self.Y2 = np.zeros((ne, nq, 3))
         self._Le = np.zeros(ne)
-        self._Ge = np.zeros((ne, 9, 3))
-        self._Ke = None
+        self._G = np.zeros((self.mesh.n_nodes, 3, 3))
         self._status = np.zeros(ne, np.int64)
         self._f_faces = self._face_load_vector()
         self._prepared = True
 
     def _build_pattern(self):
-        """Lower-triangle CSR pattern of the free DOFs and the element map."""
+        """Lower-triangle CSR pattern of the free DOFs, the element map and the
+        element colouring of kernels/assembly.py."""
         tri = self.mesh.triangles
         ndof = 9 * self.mesh.n_nodes
         fidx = -np.ones(ndof, np.int64)
@@ -430,28 +431,25 @@ class Shell:
         self.free_index = fidx
         ldof = (9 * tri[:, :, None] + np.arange(9)[None, None, :]).reshape(len(tri), 27)
         lf = fidx[ldof]                                  # (E, 27) free index or -1
-        rows = np.broadcast_to(lf[:, :, None], (len(tri), 27, 27))
-        cols = np.broadcast_to(lf[:, None, :], (len(tri), 27, 27))
-        keep = (rows >= 0) & (cols >= 0) & (rows >= cols)
-        r, c = rows[keep], cols[keep]
+        p, q = np.tril_indices(27)                       # packed k = p (p + 1) / 2 + q
+        a, b = lf[:, p], lf[:, q]
+        keep = (a >= 0) & (b >= 0)
+        r, c = np.maximum(a, b)[keep], np.minimum(a, b)[keep]
         nf = len(self.free)
-        key = r * nf + c
-        ukey, inv = np.unique(key, return_inverse=True)
-        self._emap = -np.ones((len(tri), 27, 27), np.int64)
-        # data position of each kept (e, p, q), for p >= q in local order too
-        pos = np.empty(keep.shape, np.int64)
-        pos[keep] = inv.ravel()
-        emap = np.where(keep, pos, -1)
-        # scatter_hessian reads emap[e, p, q] for q <= p in local order: make both
-        # orientations available
-        self._emap = np.maximum(emap, np.transpose(emap, (0, 2, 1)))
+        ukey, inv = np.unique(r * nf + c, return_inverse=True)
+        if len(ukey) >= np.iinfo(np.int32).max:
+            raise ValueError(f"{len(ukey)} Hessian entries: more than a 32-bit index holds")
+        self._emap = np.full(a.shape, -1, np.int32)
+        self._emap[keep] = inv.ravel()
         ur, uc = ukey // nf, ukey % nf
-        self._csr_rows, self._csr_cols = ur, uc
         indptr = np.zeros(nf + 1, np.int64)
         np.add.at(indptr, ur + 1, 1)
         self._indptr = np.cumsum(indptr)
         self._indices = uc
         self._nnz = len(ukey)
+        colour = color_elements(tri, self.mesh.n_nodes)
+        self._order = np.argsort(colour, kind="stable")
+        self._colour_start = np.searchsorted(colour[self._order], np.arange(colour.max() + 2))
 
     def _face_load_vector(self):
         """Nodal forces of -h qbar . r for unit t: sum_q w_q h qbar_q lambda_i."""
@@ -520,18 +518,15 @@ class Shell:
         """Total energy (and gradient/Hessian on the free DOFs) at free DOFs x."""
         U = self.U.copy()
         U.reshape(-1)[self.free] = x
-        ne = self.mesh.n_triangles
-        if mode >= 2 and self._Ke is None:
-            self._Ke = np.zeros((ne, 27, 27))
-        Ke = self._Ke if mode >= 2 else _NO_KE
-        Ge = self._Ge if mode >= 1 else _NO_GE
+        data = np.empty(self._nnz if mode >= 2 else 0)     # filled by assemble_dkt
         # trial states (line search) start from, but do not overwrite, the warm starts
         Y1 = self.Y1 if mode > 0 else self.Y1.copy()
         has_load = bool(np.any(self._qp_t) or np.any(self._qm_t))
         assemble_dkt(mode, self._level, self.law.kind, self.law.psi, self.law.params, self.h,
                      self.mesh.triangles, self.X, self.frames, U, self.bary, self.wts,
                      self._Gt0, self._Gt1, self._qp_t, self._qm_t, has_load, Y1, self.Y2,
-                     self._Le, Ge, Ke, self._status)
+                     self._order, self._colour_start, self._emap, numba.get_num_threads(),
+                     self._Le, self._G, data, self._status)
         if self._status.any():
             e = int(np.argmax(self._status != 0))
             raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "
@@ -544,8 +539,7 @@ class Shell:
             E -= self._p_t * V
         if mode == 0:
             return E, None, None
-        G = np.zeros((self.mesh.n_nodes, 3, 3))
-        scatter_gradient(self.mesh.triangles, self._Ge, G)
+        G = self._G
         G[:, 0] -= self._f_t
         if self._p_t:
             G[:, 0] -= self._p_t * gV
@@ -553,12 +547,7 @@ class Shell:
         if mode == 1:
             return E, g, None
         if self._p_t:
-            # -p d2V on the position blocks (local DOFs 9i + c)
-            for i in range(3):
-                for j in range(3):
-                    self._Ke[:, 9 * i:9 * i + 3, 9 * j:9 * j + 3] -= self._p_t * HV[:, i, j]
-        data = np.zeros(self._nnz)
-        scatter_hessian(self._Ke, self._emap, data)
+            add_position_blocks(self.mesh.triangles, HV, -self._p_t, self._emap, data)
         nf = len(self.free)
         K = sp.csr_matrix((data, self._indices, self._indptr), shape=(nf, nf))
         return E, g, K
@@ -579,10 +568,6 @@ class Shell:
                                 t=exc.last_t)
             raise
         return Result(self, history, time.perf_counter() - t0, converged=True, t=1.0)
-
-
-_NO_GE = np.zeros((1, 9, 3))
-_NO_KE = np.zeros((1, 27, 27))
 
 
 def _volume_terms(tri, r, mode):

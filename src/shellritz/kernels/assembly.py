@@ -1,10 +1,15 @@
 """Numba assembly of the DKT shell energy, gradient and Hessian.
 
-Element loop in parallel (prange over chunks of elements, one scratch per
-chunk) writing per-element results; the scatter into the global gradient and
-into the sparse Hessian (lower triangle of the free DOFs, CSR pattern built
-once per mesh and constraint set) is serial.  Global DOFs of node n:
-U[n, s, c], s = 0 position, 1 and 2 the derivatives along T_n1, T_n2.
+The elements are coloured once per mesh so that two elements of one colour
+share no node; colour by colour, the elements of a colour run in parallel
+(prange over chunks, one scratch per chunk) and add their gradient and
+Hessian straight into the global arrays without races: no per-element
+matrices are stored.  The Hessian is the lower triangle of the free DOFs in a
+CSR pattern built once per mesh and constraint set; ``emap[e, k]`` is the
+data position of the packed lower-triangle entry k = p (p + 1) / 2 + q
+(q <= p) of element e (-1: a fixed DOF).  Global DOFs of node n: U[n, s, c],
+s = 0 position, 1 and 2 the derivatives along T_n1, T_n2; local DOF
+9 i + 3 s + c for the element's node i.
 """
 
 import numpy as np
@@ -12,8 +17,6 @@ from numba import njit, prange
 
 from ..discretize.dkt import apply_map, element_chart, point_map
 from .point import OK, _reference_geometry, new_scratch, point_kernel
-
-N_CHUNK = 512
 
 
 @njit(cache=True)
@@ -30,7 +33,8 @@ def _element_work():
 @njit(cache=True)
 def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n,
              qp, qm, has_load, Y1, Y2, ge, ke, sc, wk):
-    """Energy of element e; ge (9, 3) and ke (27, 27) if mode asks. Returns (L, status)."""
+    """Energy of element e; ge (9, 3) and the upper triangle of ke (27, 27) if
+    mode asks. Returns (L, status)."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
     n0, n1, n2 = tri[e, 0], tri[e, 1], tri[e, 2]
@@ -121,52 +125,107 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
                         for a in range(5):
                             s += b[a, k] * T15[3 * a + c, col]
                         ke[row, col] += w * s
-    if mode >= 2:
-        for row in range(27):
-            for col in range(row):
-                ke[row, col] = ke[col, row]
     return Le, OK
+
+
+@njit(cache=True)
+def color_elements(tri, n_nodes):
+    """Greedy colouring: colour[e] is the smallest colour not taken by an
+    element sharing a node with e (7 to 9 colours on the meshes tested)."""
+    ne = tri.shape[0]
+    start = np.zeros(n_nodes + 1, np.int64)       # node -> elements (CSR)
+    for e in range(ne):
+        for i in range(3):
+            start[tri[e, i] + 1] += 1
+    for n in range(n_nodes):
+        start[n + 1] += start[n]
+    fill = start[:-1].copy()
+    adj = np.empty(start[n_nodes], np.int64)
+    for e in range(ne):
+        for i in range(3):
+            adj[fill[tri[e, i]]] = e
+            fill[tri[e, i]] += 1
+    valence = 0
+    for n in range(n_nodes):
+        valence = max(valence, start[n + 1] - start[n])
+    colour = -np.ones(ne, np.int64)
+    taken = -np.ones(3 * valence + 1, np.int64)    # taken[c] == e: c is used next to e
+    for e in range(ne):
+        for i in range(3):
+            nd = tri[e, i]
+            for k in range(start[nd], start[nd + 1]):
+                c = colour[adj[k]]
+                if c >= 0:
+                    taken[c] = e
+        c = 0
+        while taken[c] == e:
+            c += 1
+        colour[e] = c
+    return colour
 
 
 @njit(cache=True, parallel=True)
 def assemble_dkt(mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n,
-                 qp, qm, has_load, Y1, Y2, Le, Ge, Ke, status):
-    """Element energies Le (E), gradients Ge (E, 9, 3), Hessians Ke (E, 27, 27).
+                 qp, qm, has_load, Y1, Y2, order, colour_start, emap, n_threads, Le, G, data,
+                 status):
+    """Element energies Le (E); for mode >= 1 the gradient G (n, 3, 3), for
+    mode >= 2 the Hessian values data (positions emap), both overwritten.
 
+    order: the elements sorted by colour, colour c being
+    order[colour_start[c]:colour_start[c + 1]] (see color_elements);
+    n_threads: numba.get_num_threads() of the caller (a colour runs as
+    4 n_threads chunks).
     status[e] = point-kernel status of the first failing point (0: ok).
     """
-    ne = tri.shape[0]
-    nchunk = min(ne, N_CHUNK)
-    for ch in prange(nchunk):
-        sc = new_scratch()
-        wk = _element_work()
-        for e in range(ch * ne // nchunk, (ch + 1) * ne // nchunk):
-            # Ge / Ke may be (1, ...) placeholders when not asked for
-            Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, tri, X, T, U,
-                                        bary, wts, G0n, G1n, qp, qm, has_load, Y1, Y2,
-                                        Ge[e if mode >= 1 else 0], Ke[e if mode >= 2 else 0],
-                                        sc, wk)
+    if mode >= 1:
+        G[:] = 0.0
+    if mode >= 2:
+        data[:] = 0.0
+    for c in range(colour_start.shape[0] - 1):
+        first = colour_start[c]
+        n = colour_start[c + 1] - first
+        nchunk = min(n, 4 * n_threads)
+        for ch in prange(nchunk):
+            sc = new_scratch()
+            wk = _element_work()
+            ge = np.zeros((9, 3))
+            ke = np.zeros((27, 27))
+            for j in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
+                e = order[j]
+                Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, tri, X, T,
+                                            U, bary, wts, G0n, G1n, qp, qm, has_load, Y1, Y2,
+                                            ge, ke, sc, wk)
+                if status[e] != OK:
+                    continue
+                if mode >= 1:
+                    for i in range(3):
+                        nd = tri[e, i]
+                        for s in range(3):
+                            for k in range(3):
+                                G[nd, s, k] += ge[3 * i + s, k]
+                if mode >= 2:
+                    k = 0
+                    for p in range(27):
+                        for q in range(p + 1):
+                            pos = emap[e, k]
+                            if pos >= 0:
+                                data[pos] += ke[q, p]      # ke holds the upper triangle
+                            k += 1
 
 
 @njit(cache=True)
-def scatter_gradient(tri, Ge, out):
-    """out (n, 3, 3) = sum of element gradients."""
-    out[:] = 0.0
+def add_position_blocks(tri, HV, coef, emap, data):
+    """data += coef HV on the position DOFs; HV[e, i, j] is the (3, 3) block
+    between the positions of the element's nodes i and j (symmetric overall)."""
     for e in range(tri.shape[0]):
         for i in range(3):
-            nd = tri[e, i]
-            for s in range(3):
-                for c in range(3):
-                    out[nd, s, c] += Ge[e, 3 * i + s, c]
-
-
-@njit(cache=True)
-def scatter_hessian(Ke, emap, data):
-    """data[emap[e, p, q]] += Ke[e, p, q] for emap >= 0 (free lower-triangle entries)."""
-    data[:] = 0.0
-    for e in range(Ke.shape[0]):
-        for p in range(27):
-            for q in range(p + 1):
-                k = emap[e, p, q]
-                if k >= 0:
-                    data[k] += Ke[e, p, q]
+            for j in range(i + 1):
+                for a in range(3):
+                    p = 9 * i + a
+                    for b in range(3):
+                        q = 9 * j + b
+                        if q > p:
+                            continue
+                        pos = emap[e, p * (p + 1) // 2 + q]
+                        if pos >= 0:
+                            data[pos] += coef * HV[e, i, j, a, b]
