@@ -26,7 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .discretize.dkt import rule
-from .kernels.assembly import add_position_blocks, assemble_dkt, color_elements
+from .kernels.assembly import (add_position_blocks, assemble_dkt, color_elements,
+                               hessian_pattern)
 from .kernels.point import STATUS_TEXT
 from .materials import Law
 from .mesh import Mesh, MeshError
@@ -422,31 +423,14 @@ class Shell:
         self._prepared = True
 
     def _build_pattern(self):
-        """Lower-triangle CSR pattern of the free DOFs, the element map and the
-        element colouring of kernels/assembly.py."""
+        """Free-DOF numbering, the Hessian's CSR pattern with the element map,
+        and the element colouring (kernels/assembly.py)."""
         tri = self.mesh.triangles
-        ndof = 9 * self.mesh.n_nodes
-        fidx = -np.ones(ndof, np.int64)
+        fidx = -np.ones(9 * self.mesh.n_nodes, np.int64)
         fidx[self.free] = np.arange(len(self.free))
         self.free_index = fidx
-        ldof = (9 * tri[:, :, None] + np.arange(9)[None, None, :]).reshape(len(tri), 27)
-        lf = fidx[ldof]                                  # (E, 27) free index or -1
-        p, q = np.tril_indices(27)                       # packed k = p (p + 1) / 2 + q
-        a, b = lf[:, p], lf[:, q]
-        keep = (a >= 0) & (b >= 0)
-        r, c = np.maximum(a, b)[keep], np.minimum(a, b)[keep]
-        nf = len(self.free)
-        ukey, inv = np.unique(r * nf + c, return_inverse=True)
-        if len(ukey) >= np.iinfo(np.int32).max:
-            raise ValueError(f"{len(ukey)} Hessian entries: more than a 32-bit index holds")
-        self._emap = np.full(a.shape, -1, np.int32)
-        self._emap[keep] = inv.ravel()
-        ur, uc = ukey // nf, ukey % nf
-        indptr = np.zeros(nf + 1, np.int64)
-        np.add.at(indptr, ur + 1, 1)
-        self._indptr = np.cumsum(indptr)
-        self._indices = uc
-        self._nnz = len(ukey)
+        self._indptr, self._indices, self._emap = hessian_pattern(tri, fidx.reshape(-1, 9))
+        self._nnz = len(self._indices)
         colour = color_elements(tri, self.mesh.n_nodes)
         self._order = np.argsort(colour, kind="stable")
         self._colour_start = np.searchsorted(colour[self._order], np.arange(colour.max() + 2))

@@ -229,3 +229,101 @@ def add_position_blocks(tri, HV, coef, emap, data):
                         pos = emap[e, p * (p + 1) // 2 + q]
                         if pos >= 0:
                             data[pos] += coef * HV[e, i, j, a, b]
+
+
+@njit(cache=True)
+def hessian_pattern(tri, free_index):
+    """CSR pattern (indptr, indices) of the lower triangle of the Hessian on the
+    free DOFs, and the element map emap (E, 378) of the module docstring.
+
+    free_index (n, 9): free index of DOF k of node n (-1: fixed), increasing in
+    (n, k).  Built node by node: row (I, a) holds the free DOFs of the nodes
+    J < I that share an element with I, in order, then those of I up to a.
+    """
+    n = free_index.shape[0]
+    ne = tri.shape[0]
+    # nbr[nptr[I]:nptr[I + 1]]: nodes J <= I sharing an element with I, sorted
+    cnt = np.zeros(n + 1, np.int64)
+    for e in range(ne):
+        for i in range(3):
+            for j in range(3):
+                if tri[e, j] <= tri[e, i]:
+                    cnt[tri[e, i] + 1] += 1
+    for I in range(n):
+        cnt[I + 1] += cnt[I]
+    raw = np.empty(cnt[n], np.int64)
+    fill = cnt[:-1].copy()
+    for e in range(ne):
+        for i in range(3):
+            for j in range(3):
+                if tri[e, j] <= tri[e, i]:
+                    raw[fill[tri[e, i]]] = tri[e, j]
+                    fill[tri[e, i]] += 1
+    nptr = np.zeros(n + 1, np.int64)
+    nbr = np.empty(cnt[n], np.int64)
+    m = 0
+    for I in range(n):
+        seg = np.sort(raw[cnt[I]:cnt[I + 1]])
+        for k in range(seg.shape[0]):
+            if k == 0 or seg[k] != seg[k - 1]:
+                nbr[m] = seg[k]
+                m += 1
+        nptr[I + 1] = m
+    # rank[J, l]: free DOFs of node J before l; offset[s]: columns before slot s
+    rank = np.zeros((n, 10), np.int64)
+    for J in range(n):
+        for l in range(9):
+            rank[J, l + 1] = rank[J, l] + (1 if free_index[J, l] >= 0 else 0)
+    offset = np.zeros(m + 1, np.int64)
+    for I in range(n):
+        acc = 0
+        for s in range(nptr[I], nptr[I + 1]):
+            offset[s] = acc
+            acc += rank[nbr[s], 9]
+    nf = 0
+    for I in range(n):
+        nf += rank[I, 9]
+    indptr = np.zeros(nf + 1, np.int64)
+    for I in range(n):
+        own = offset[nptr[I + 1] - 1]           # node I is the last of its list
+        for a in range(9):
+            r = free_index[I, a]
+            if r >= 0:
+                indptr[r + 1] = own + rank[I, a] + 1
+    for r in range(nf):
+        indptr[r + 1] += indptr[r]
+    if indptr[nf] >= 2 ** 31 - 1:
+        raise ValueError("more Hessian entries than a 32-bit index holds")
+    indices = np.empty(indptr[nf], np.int32)
+    for I in range(n):
+        for a in range(9):
+            r = free_index[I, a]
+            if r < 0:
+                continue
+            k = indptr[r]
+            for s in range(nptr[I], nptr[I + 1]):
+                J = nbr[s]
+                top = a + 1 if J == I else 9
+                for l in range(top):
+                    if free_index[J, l] >= 0:
+                        indices[k] = free_index[J, l]
+                        k += 1
+    emap = np.empty((ne, 378), np.int32)
+    for e in range(ne):
+        k = 0
+        for p in range(27):
+            for q in range(p + 1):
+                ni, a = tri[e, p // 9], p % 9
+                nj, b = tri[e, q // 9], q % 9
+                fp, fq = free_index[ni, a], free_index[nj, b]
+                if fp < 0 or fq < 0:
+                    emap[e, k] = -1
+                else:
+                    if fp < fq:
+                        ni, a, nj, b, fp, fq = nj, b, ni, a, fq, fp
+                    s = nptr[ni]
+                    while nbr[s] != nj:
+                        s += 1
+                    emap[e, k] = indptr[fp] + offset[s] + rank[nj, b]
+                k += 1
+    return indptr, indices, emap
