@@ -61,3 +61,17 @@ def test_hopeless_matrix_raises():
     A = np.array([[0.0, 1e6], [1e6, 0.0]])
     with pytest.raises(EvaluationError, match="positive definite"):
         shifted_solve(lower(A), np.ones(2))
+
+
+def test_first_shift_below_the_smallest_is_tried_as_zero():
+    """Newton asks for 1/100 of the last shift; once that is below the smallest
+    shift of the retry loop (1e-8 of the largest diagonal entry) the solve is
+    unshifted: a lingering tiny shift would only mark steps as shifted."""
+    A = random_symmetric(10, np.logspace(-9, 0, 10), seed=3)   # soft mode 1e-9
+    b = np.ones(10)
+    scale = np.abs(np.diag(A)).max()
+    x, shift = shifted_solve(lower(A), b, 0.5e-8 * scale)
+    assert shift == 0.0
+    assert np.linalg.norm(A @ x - b) <= 1e-6 * np.linalg.norm(b)
+    x, shift = shifted_solve(lower(A), b, 2e-8 * scale)
+    assert shift == 2e-8 * scale                # a real shift is kept (and damps the soft mode)

@@ -106,10 +106,12 @@ def shifted_solve(K, rhs, shift=0.0):
     triangle, CSR.
 
     Where K + shift I is not positive definite the shift is raised (from 1e-8
-    of the largest diagonal entry, x10 per try) and the solve retried.
-    Returns (x, shift used).
+    of the largest diagonal entry, x10 per try) and the solve retried.  A
+    first shift below that smallest one is tried as 0.  Returns (x, shift used).
     """
     scale = max(np.abs(K.diagonal()).max(), 1e-300)
+    if shift < 1e-8 * scale:
+        shift = 0.0
     A = symmetric_from_lower(K)
     while True:
         lu, _ = factorize_if_positive_definite(A, shift)
@@ -157,8 +159,10 @@ def newton(problem, t, opts, history, g_ref):
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e})")
             break
-        # try a smaller shift than last time (Levenberg-Marquardt style)
-        p, shift = shifted_solve(K, -g, 0.1 * shift if shift > 0 else 0.0)
+        # try a much smaller shift than last time (Levenberg-Marquardt style), 0
+        # once that is below the smallest shift: a lingering shift damps the soft
+        # (bending) modes, whose eigenvalues can be 1e-8 of the largest
+        p, shift = shifted_solve(K, -g, 0.01 * shift)
         slope = g @ p
         # at the round-off floor: the predicted decrease -g.p/2 is below the
         # round-off of the energy and the last full step no longer reduced |g|
