@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shellritz.solve import (EvaluationError, factorize_if_positive_definite, shifted_solve,
-                             symmetric_from_lower)
+from shellritz.solve import (MIN_SHIFT, EvaluationError, factorize_if_positive_definite,
+                             shifted_solve, symmetric_from_lower)
 
 
 def lower(A):
@@ -63,15 +63,21 @@ def test_hopeless_matrix_raises():
         shifted_solve(lower(A), np.ones(2))
 
 
-def test_first_shift_below_the_smallest_is_tried_as_zero():
-    """Newton asks for 1/100 of the last shift; once that is below the smallest
-    shift of the retry loop (1e-8 of the largest diagonal entry) the solve is
-    unshifted: a lingering tiny shift would only mark steps as shifted."""
-    A = random_symmetric(10, np.logspace(-9, 0, 10), seed=3)   # soft mode 1e-9
-    b = np.ones(10)
+
+def test_tiny_shift_regularizes_an_exact_null_mode():
+    """A free rigid translation makes the Hessian singular; Newton's shift,
+    lowered 100x per iteration, ends far below MIN_SHIFT and then only
+    regularizes the null mode: the solve is that of the consistent singular
+    system (and counts as an undamped Newton step)."""
+    # a free chain of springs: exact null mode (translation), exactly zero last pivot
+    w = np.arange(1.0, 10.0)
+    A = np.zeros((10, 10))
+    for i, wi in enumerate(w):
+        A[np.ix_([i, i + 1], [i, i + 1])] += wi * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    b = np.random.default_rng(4).standard_normal(10)
+    b -= b.mean()                                        # consistent right-hand side
     scale = np.abs(np.diag(A)).max()
-    x, shift = shifted_solve(lower(A), b, 0.5e-8 * scale)
-    assert shift == 0.0
+    assert factorize_if_positive_definite(sp.csc_matrix(A))[0] is None
+    x, shift = shifted_solve(lower(A), b, 1e-6 * MIN_SHIFT * scale)
+    assert 0 < shift < MIN_SHIFT * scale
     assert np.linalg.norm(A @ x - b) <= 1e-6 * np.linalg.norm(b)
-    x, shift = shifted_solve(lower(A), b, 2e-8 * scale)
-    assert shift == 2e-8 * scale                # a real shift is kept (and damps the soft mode)

@@ -70,6 +70,13 @@ class SolveHistory:
     unstable_modes: int = 0     # its number of negative eigenvalues (None: singular)
 
 
+# Smallest shift of the retry ladder, relative to the largest diagonal entry of
+# the Hessian.  Newton lowers its shift 100x per iteration below this level:
+# such a shift only regularizes exact null modes (e.g. a free rigid
+# translation) and the step counts as an undamped Newton step.
+MIN_SHIFT = 1e-8
+
+
 def symmetric_from_lower(K):
     """The full symmetric matrix (CSC) of its lower triangle K (CSR)."""
     return (K + sp.tril(K, -1).T).tocsc()
@@ -105,13 +112,11 @@ def shifted_solve(K, rhs, shift=0.0):
     """Solve (K + shift I) x = rhs with K + shift I positive definite; K: lower
     triangle, CSR.
 
-    Where K + shift I is not positive definite the shift is raised (from 1e-8
-    of the largest diagonal entry, x10 per try) and the solve retried.  A
-    first shift below that smallest one is tried as 0.  Returns (x, shift used).
+    Where K + shift I is not positive definite the shift is raised (from
+    MIN_SHIFT times the largest diagonal entry, x10 per try) and the solve
+    retried.  Returns (x, shift used).
     """
     scale = max(np.abs(K.diagonal()).max(), 1e-300)
-    if shift < 1e-8 * scale:
-        shift = 0.0
     A = symmetric_from_lower(K)
     while True:
         lu, _ = factorize_if_positive_definite(A, shift)
@@ -119,7 +124,7 @@ def shifted_solve(K, rhs, shift=0.0):
             x = lu.solve(np.asarray(rhs, dtype=np.float64))
             if np.all(np.isfinite(x)):
                 return x, shift
-        shift = max(1e-8 * scale, 10.0 * shift)
+        shift = max(MIN_SHIFT * scale, 10.0 * shift)
         if shift > 1e3 * scale:
             raise EvaluationError("Hessian could not be made positive definite by shifting")
 
@@ -159,15 +164,16 @@ def newton(problem, t, opts, history, g_ref):
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e})")
             break
-        # try a much smaller shift than last time (Levenberg-Marquardt style), 0
-        # once that is below the smallest shift: a lingering shift damps the soft
-        # (bending) modes, whose eigenvalues can be 1e-8 of the largest
+        # try a much smaller shift than last time (Levenberg-Marquardt style): a
+        # lingering shift damps the soft (bending) modes, whose eigenvalues can
+        # be 1e-8 of the largest
         p, shift = shifted_solve(K, -g, 0.01 * shift)
+        undamped = shift < MIN_SHIFT * np.abs(K.diagonal()).max()
         slope = g @ p
         # at the round-off floor: the predicted decrease -g.p/2 is below the
         # round-off of the energy and the last full step no longer reduced |g|
         # (ill-conditioned problems, e.g. very thin shells, stop here)
-        if (shift == 0.0 and len(gnorms) > 1 and gnorm > 0.2 * gnorms[-2]
+        if (undamped and len(gnorms) > 1 and gnorm > 0.2 * gnorms[-2]
                 and -slope <= 1e3 * np.finfo(float).eps * problem.energy_magnitude()):
             last_step = 0.0
             continue
@@ -198,7 +204,7 @@ def newton(problem, t, opts, history, g_ref):
                     print(f"    t={t:.4f} it={it}: line search failed")
                 return False
         x = xn
-        last_step = np.abs(p).max() if alpha == 1.0 and shift == 0.0 else np.inf
+        last_step = np.abs(p).max() if alpha == 1.0 and undamped else np.inf
         problem.set_free_state(x)
         try:
             E, g, K = problem.evaluate(x, 2)
