@@ -326,4 +326,4 @@ def hessian_pattern(tri, free_index):
                         s += 1
                     emap[e, k] = indptr[fp] + offset[s] + rank[nj, b]
                 k += 1
-    return indptr, indices, emap
+    return indptr.astype(np.int32), indices, emap     # int32: scipy's native index type
