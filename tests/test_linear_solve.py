@@ -63,7 +63,6 @@ def test_hopeless_matrix_raises():
         shifted_solve(lower(A), np.ones(2))
 
 
-
 def test_tiny_shift_regularizes_an_exact_null_mode():
     """A free rigid translation makes the Hessian singular; Newton's shift,
     lowered 100x per iteration, ends far below MIN_SHIFT and then only

@@ -129,22 +129,29 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
 
 
 @njit(cache=True)
-def color_elements(tri, n_nodes):
-    """Greedy colouring: colour[e] is the smallest colour not taken by an
-    element sharing a node with e (7 to 9 colours on the meshes tested)."""
-    ne = tri.shape[0]
-    start = np.zeros(n_nodes + 1, np.int64)       # node -> elements (CSR)
-    for e in range(ne):
+def _node_elements(tri, n_nodes):
+    """The elements of node n: adj[start[n]:start[n + 1]] (CSR)."""
+    start = np.zeros(n_nodes + 1, np.int64)
+    for e in range(tri.shape[0]):
         for i in range(3):
             start[tri[e, i] + 1] += 1
     for n in range(n_nodes):
         start[n + 1] += start[n]
     fill = start[:-1].copy()
     adj = np.empty(start[n_nodes], np.int64)
-    for e in range(ne):
+    for e in range(tri.shape[0]):
         for i in range(3):
             adj[fill[tri[e, i]]] = e
             fill[tri[e, i]] += 1
+    return start, adj
+
+
+@njit(cache=True)
+def color_elements(tri, n_nodes):
+    """Greedy colouring: colour[e] is the smallest colour not taken by an
+    element sharing a node with e (7 to 9 colours on the meshes tested)."""
+    ne = tri.shape[0]
+    start, adj = _node_elements(tri, n_nodes)
     valence = 0
     for n in range(n_nodes):
         valence = max(valence, start[n + 1] - start[n])
@@ -243,27 +250,23 @@ def hessian_pattern(tri, free_index):
     n = free_index.shape[0]
     ne = tri.shape[0]
     # nbr[nptr[I]:nptr[I + 1]]: nodes J <= I sharing an element with I, sorted
-    cnt = np.zeros(n + 1, np.int64)
-    for e in range(ne):
-        for i in range(3):
-            for j in range(3):
-                if tri[e, j] <= tri[e, i]:
-                    cnt[tri[e, i] + 1] += 1
-    for I in range(n):
-        cnt[I + 1] += cnt[I]
-    raw = np.empty(cnt[n], np.int64)
-    fill = cnt[:-1].copy()
-    for e in range(ne):
-        for i in range(3):
-            for j in range(3):
-                if tri[e, j] <= tri[e, i]:
-                    raw[fill[tri[e, i]]] = tri[e, j]
-                    fill[tri[e, i]] += 1
+    start, adj = _node_elements(tri, n)
     nptr = np.zeros(n + 1, np.int64)
-    nbr = np.empty(cnt[n], np.int64)
+    nbr = np.empty(3 * start[n], np.int64)
+    valence = 0
+    for I in range(n):
+        valence = max(valence, start[I + 1] - start[I])
+    buf = np.empty(3 * valence, np.int64)
     m = 0
     for I in range(n):
-        seg = np.sort(raw[cnt[I]:cnt[I + 1]])
+        k = 0
+        for s in range(start[I], start[I + 1]):
+            for j in range(3):
+                J = tri[adj[s], j]
+                if J <= I:
+                    buf[k] = J
+                    k += 1
+        seg = np.sort(buf[:k])
         for k in range(seg.shape[0]):
             if k == 0 or seg[k] != seg[k - 1]:
                 nbr[m] = seg[k]

@@ -258,6 +258,14 @@ def _dot9(a, b):
 
 
 @njit(cache=True, inline="always")
+def _solve_b(Binv, R, out):
+    """out[k, q] = -(B^{-1} R)[k, q] for the NV columns of R (3 x NV)."""
+    for k in range(3):
+        for q in range(NV):
+            out[k, q] = -(Binv[k, 0] * R[0, q] + Binv[k, 1] * R[1, q] + Binv[k, 2] * R[2, q])
+
+
+@njit(cache=True, inline="always")
 def _slot_jacobian(C, Zv, ncol, out):
     """out[(i,J), q] = d slot / d v_q with y2 fixed (blocks 0..4 direct,
     5..7 via Zv), for the first ncol columns q (the others are zero)."""
@@ -643,21 +651,16 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     # ---- Hessian -------------------------------------------------------
     Zv = sc[16]
     # Z_y1 = -B^{-1} c0_v ; Z_Ya = -B^{-1}(ca_v + K_a Z_y1)
-    for q in range(NV):
+    _solve_b(Binv, cx[0:3], Zv[0:3])
+    Ra = sc[18][0:3]            # (work) right-hand sides ca_v + K_a Z_y1
+    for a in range(2):
         for k in range(3):
-            rhs[k] = -cx[k, q]
-        mv3(Binv, rhs, rhs)
-        for k in range(3):
-            Zv[k, q] = rhs[k]
-        for a in range(2):
-            for k in range(3):
-                s = -cx[3 + 3 * a + k, q]
+            for q in range(NV):
+                s = cx[3 + 3 * a + k, q]
                 for l in range(3):
-                    s -= cx[3 + 3 * a + k, z0 + l] * Zv[l, q]
-                rhs[k] = s
-            mv3(Binv, rhs, rhs)
-            for k in range(3):
-                Zv[3 + 3 * a + k, q] = rhs[k]
+                    s += cx[3 + 3 * a + k, z0 + l] * Zv[l, q]
+                Ra[k, q] = s
+        _solve_b(Binv, Ra, Zv[3 + 3 * a:6 + 3 * a])
     # lambda-weighted directions: Xtot = X + g0 (Dl0 + sum_a (t1a Dla + D1la))
     Xt = vec[11]
     for p in range(9):
@@ -862,9 +865,7 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc):
         _matvec9(AA, D0[k], tmp)
         _add_to_xi(tmp, CA0, g0, cx[k])
     Zv = sc[16]
-    for k in range(3):
-        for q in range(NV):
-            Zv[k, q] = -(Binv[k, 0] * cx[0, q] + Binv[k, 1] * cx[1, q] + Binv[k, 2] * cx[2, q])
+    _solve_b(Binv, cx[0:3], Zv[0:3])
     Js = sc[17]
     _slot_jacobian(CA0, Zv, NX, Js[0])
     H = sc[13][4]
