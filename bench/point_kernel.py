@@ -83,16 +83,16 @@ def material_profile(law, repeats, n=20000):
                                             mat_prepare, new_state)
 
     @numba.njit
-    def loop(n, what, kind, psi, params, A, mv, mm, mp, mi, c, C, D, w, out, v9):
+    def loop(n, what, kind, psi, params, A, mv, mm, mp, c, C, D, w, out, v9):
         for _ in range(n):
             if what == 0:
-                mat_prepare(kind, psi, params, A, mv, mm, mp, mi)
+                mat_prepare(kind, psi, params, A, mv, mm, mp)
             elif what == 1:
-                mat_d3(mv, mm, mp, mi, c, out)
+                mat_d3(mv, mm, mp, c, out)
             elif what == 2:
-                mat_d3_vec(mv, mm, mp, mi, c, C[0], v9)
+                mat_d3_vec(mv, mm, mp, c, C[0], v9)
             else:
-                mat_combination(mv, mm, mp, mi, 1.0, c, True, C, D, w, out)
+                mat_combination(mv, mm, mp, 1.0, c, True, C, D, w, out)
 
     rng = np.random.default_rng(1)
     A = np.eye(3) + 0.1 * rng.standard_normal((3, 3))

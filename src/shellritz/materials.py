@@ -79,7 +79,7 @@ class Law:
             raise ValueError(f"{self!r}: det A = {np.linalg.det(A):g} <= 0 (inverted)")
         if status == 2:
             raise ValueError(f"{self!r}: non-finite energy derivatives at A")
-        mv, mm, mp, mi = st
+        mv, mm, mp = st
         out = [mp[S_W], mv[V_P].reshape(3, 3).copy(), mm[M_AA].copy()]
         if order >= 3:
             m3 = np.zeros((9, 9))

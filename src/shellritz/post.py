@@ -19,7 +19,7 @@ from .kernels.point import _reference_geometry
 
 @njit(cache=True)
 def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, stretch, P_out, S_out, area_out):
-    mv, mm, mp, mi = new_state()
+    mv, mm, mp = new_state()
     Xe = np.zeros((3, 3))
     Te = np.zeros((3, 3, 2))
     Q, gl, et, el = np.zeros((3, 2, 2)), np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(3)
@@ -60,7 +60,7 @@ def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, stretch, P_out,
             Gi = np.linalg.inv(G)
             gdet = np.linalg.det(G)
             A = F @ Gi
-            mat_prepare(kind, psi, params, A, mv, mm, mp, mi)
+            mat_prepare(kind, psi, params, A, mv, mm, mp)
             PA = mv[V_P].reshape(3, 3)
             P = gdet * PA @ Gi.T
             sig = P @ F.T / np.linalg.det(F)

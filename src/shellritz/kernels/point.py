@@ -399,7 +399,7 @@ def _rot(E, x, out):
 def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
                   qbar, m, dm, y1, y2, grad, hess, sc):
     """point_kernel with every vector in the local frame (see point_kernel)."""
-    mv, mm, mp, mi = sc[0]
+    mv, mm, mp = sc[0]
     E, Lam, dgup, na, kap, gr = sc[1], sc[2], sc[3], sc[4], sc[5], sc[6]
     CA, U, S, vec, sv, B3 = sc[7], sc[8], sc[9], sc[10], sc[11], sc[12]
     M9 = sc[13]
@@ -508,7 +508,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         # orient with the reference normal: same sign as (R_1 x R_2).(r_1 x r_2)
         for i in range(3):
             y1[i] = ff[i] / nf * G0L[2, 2]
-    status = _solve_y1(kind, psi, params, g0, m, CA[0], U, y1, D0, S[0], mv, mm, mp, mi,
+    status = _solve_y1(kind, psi, params, g0, m, CA[0], U, y1, D0, S[0], mv, mm, mp,
                        B, LB, sc[25], sc[26][1])
     if status != OK:
         return nan, status
@@ -591,7 +591,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     gA = vec[10]
     # dLtil/dA0 = cW P + AA X + cB D3(A1) A1 + P Q0^T
     _matvec9(AA, X, gA)
-    mat_d3_vec(mv, mm, mp, mi, A1, A1, tmp)
+    mat_d3_vec(mv, mm, mp, A1, A1, tmp)
     for i in range(3):
         for L_ in range(3):
             pq = P[3 * i] * Q0[L_, 0] + P[3 * i + 1] * Q0[L_, 1] + P[3 * i + 2] * Q0[L_, 2]
@@ -610,7 +610,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     # constraint Jacobians; D3W[., A1a, D0^k] = D3(A1a) D0^k
     d3a = M9[0:2]
     for a in range(2):
-        mat_d3(mv, mm, mp, mi, S[2 + a], d3a[a])
+        mat_d3(mv, mm, mp, S[2 + a], d3a[a])
     for k in range(3):
         _matvec9(AA, D0[k], tmp)
         _add_to_xi(tmp, CA[0], g0, cx[k])
@@ -686,10 +686,10 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     pw[0] = cB
     pw[1] = g0
     pw[2] = g0
-    mat_combination(mv, mm, mp, mi, cW, Xt, True, pc, pd, pw, H00)
-    mat_d3(mv, mm, mp, mi, A1, H01)
+    mat_combination(mv, mm, mp, cW, Xt, True, pc, pd, pw, H00)
+    mat_d3(mv, mm, mp, A1, H01)
     for a in range(2):
-        mat_d3(mv, mm, mp, mi, pd[1 + a], H0a[a])
+        mat_d3(mv, mm, mp, pd[1 + a], H0a[a])
     for p in range(9):
         for q in range(9):
             H01[p, q] *= 2.0 * cB
@@ -778,14 +778,14 @@ def _y1_residual(g0, m, y, D0, W, P, AA, res, B):
 
 
 @njit(cache=True)
-def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, mi, B, LB, work, Bs):
+def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, B, LB, work, Bs):
     """Newton with backtracking for P(F0) n = m, i.e. the minimum over y1 of
     g0 W(A0) - m.y1 (convex along the rank-one family F_t + y1 (x) n).
     On return (OK) the material state, B and chol(B) belong to the root."""
     for i in range(3):
         U[i, Y1_BLOCK] = y1[i]
     _slot(U, CA0, A0)
-    st = mat_prepare(kind, psi, params, A0.reshape(3, 3), mv, mm, mp, mi)
+    st = mat_prepare(kind, psi, params, A0.reshape(3, 3), mv, mm, mp)
     if st != 0:
         return ERR_INVERTED if st == 1 else ERR_LAW
     res, ytry, step = work[0], work[1], work[2]
@@ -823,7 +823,7 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, mi, B, L
                 ytry[i] = y1[i] + alpha * step[i]
                 U[i, Y1_BLOCK] = ytry[i]
             _slot(U, CA0, A0)
-            st = mat_prepare(kind, psi, params, A0.reshape(3, 3), mv, mm, mp, mi)
+            st = mat_prepare(kind, psi, params, A0.reshape(3, 3), mv, mm, mp)
             if st == 2:
                 return ERR_LAW
             if st == 0:
