@@ -22,6 +22,8 @@ reference derivatives, so the discrete reference is exactly stress free.
 import numpy as np
 from numba import njit
 
+from ..kernels import KERNEL
+
 # Symmetric quadrature rules on the triangle: barycentric points, weights
 # (summing to 1).  Dunavant (1985).
 def _sym_rule(entries):
@@ -57,7 +59,7 @@ def rule(npoints):
         raise ValueError(f"no {npoints}-point triangle rule; choose one of {sorted(RULES)}") from None
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_chart(Xe, Te, Q, gl, et, el):
     """Facet chart of a triangle.
 
@@ -107,7 +109,7 @@ def element_chart(Xe, Te, Q, gl, et, el):
     return 0.5 * det
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def point_map(lam, Q, gl, et, el, b, C):
     """b (5, 9): v = (r_1, r_2, r_11, r_12, r_22) = b @ (nodal 3-vectors), the
     nodal blocks ordered (r_0, a_01, a_02, r_1, a_11, a_12, r_2, a_21, a_22).
@@ -161,7 +163,7 @@ def point_map(lam, Q, gl, et, el, b, C):
             b[4, k] += dN1 * C[1, k]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def apply_map(b, blocks, out):
     """out (15) = (b (x) I3) blocks, blocks (9, 3) nodal 3-vectors."""
     for a in range(5):

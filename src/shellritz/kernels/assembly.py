@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..discretize.dkt import apply_map, element_chart, point_map
+from . import KERNEL
 from .point import OK, _reference_geometry, new_scratch, point_kernel
 
 
@@ -30,7 +31,7 @@ def _element_work():
             np.zeros((3, 3)), np.zeros((2, 3)))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n,
              qp, qm, has_load, Y1, Y2, ge, ke, sc, wk):
     """Energy of element e; ge (9, 3) and the upper triangle of ke (27, 27) if
@@ -220,7 +221,7 @@ def assemble_dkt(mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n
                             k += 1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def add_position_blocks(tri, HV, coef, emap, data):
     """data += coef HV on the position DOFs; HV[e, i, j] is the (3, 3) block
     between the positions of the element's nodes i and j (symmetric overall)."""

@@ -40,6 +40,8 @@ import numpy as np
 from numba import njit, types
 from numba.extending import intrinsic
 
+from . import KERNEL
+
 
 KIND_INVARIANT = 0
 KIND_LINEAR = 1
@@ -149,21 +151,21 @@ def new_state():
 # multilinear forms of the invariants
 # ---------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_eps(c, coef, out):
     """out += coef * D3J[., ., c] (the mixed determinant, constant in A)."""
     for n in range(_EPS_SIGN.shape[0]):
         out[_EPS_IDX[n, 0], _EPS_IDX[n, 1]] += coef * _EPS_SIGN[n] * c[_EPS_IDX[n, 2]]
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_eps_vec(c, d, coef, out):
     """out += coef * D3J[., c, d] as a 9-vector."""
     for n in range(_EPS_SIGN.shape[0]):
         out[_EPS_IDX[n, 0]] += coef * _EPS_SIGN[n] * c[_EPS_IDX[n, 2]] * d[_EPS_IDX[n, 1]]
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_s4(c, d, coef, out):
     """out += coef * D4(tr C^2)[., ., c, d]  (c, d flattened 3x3).
 
@@ -192,7 +194,7 @@ def _add_s4(c, d, coef, out):
                 out[3 * i + L, 3 * i + M] += f * ctd
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_s4_vec(c, d, e, coef, out):
     """out += coef * S4(c, d) e (9-vector), S4 as in _add_s4."""
     f = 4.0 * coef
@@ -214,7 +216,7 @@ def _add_s4_vec(c, d, e, coef, out):
             out[3 * i + L] += f * acc
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_R(inv, A9, g1, c, out):
     """out += D3 I[., ., c] for invariant id inv (linear in c; zero for I1)."""
     if inv == 2:
@@ -231,7 +233,7 @@ def _add_R(inv, A9, g1, c, out):
         _add_s4(c, A9, -0.5, out)
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _R_vec(inv, A9, g1, c, d, out):
     """out = D3 I[., c, d] (9-vector) for invariant id inv."""
     for p in range(9):
@@ -251,7 +253,7 @@ def _R_vec(inv, A9, g1, c, d, out):
         _add_s4_vec(c, A9, d, -0.5, out)
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_S(inv, c, d, coef, out):
     """out += coef * D4 I[., ., c, d] (only I2 has a non-zero one)."""
     if inv != 1 or coef == 0.0:
@@ -266,13 +268,13 @@ def _add_S(inv, c, d, coef, out):
     _add_s4(c, d, -0.5 * coef, out)
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _inv(nk, a):
     """Invariant id (0: I1, 1: I2, 2: J) of the a-th active invariant."""
     return a if nk == 3 else 2 * a
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _forms(nk, mv, mm, c, qc, gc):
     """q_a = Q_a c and gam_a = g_a . c for the active invariants (Q_I1 = 2 Id)."""
     for a in range(nk):
@@ -295,7 +297,7 @@ def _forms(nk, mv, mm, c, qc, gc):
 # public entry points
 # ---------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(**KERNEL)
 def mat_prepare(kind, psi_fn, params, A, mv, mm, mp):
     """Evaluate W, P and AA at A (3x3) into the state (mv, mm, mp).
 
@@ -415,7 +417,7 @@ def mat_prepare(kind, psi_fn, params, A, mv, mm, mp):
     return 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def mat_combination(mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
     """out = cAA AA + D3W[., ., c3] (if with_c3) + sum_p wts[p] D4W[., ., C[p], Dd[p]].
 
@@ -449,7 +451,7 @@ def mat_combination(mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
         _combination(2, mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out)
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _combination(nk, mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
     """mat_combination for nk active invariants (a compile-time constant)."""
     g = mv[V_G:V_G + 3]
@@ -553,13 +555,13 @@ def _combination(nk, mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
             _add_S(_inv(nk, a), C[pr], Dd[pr], wts[pr] * mp[S_P1 + a], out)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def mat_d3(mv, mm, mp, c, out):
     """out = D3W[., ., c] (9x9). Requires mat_prepare on the same A."""
     mat_combination(mv, mm, mp, 0.0, c, True, mv[0:0], mv[0:0], mp[0:0], out)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def mat_d4(mv, mm, mp, c, d, coef, out):
     """out = coef * D4W[., ., c, d] (9x9). Requires mat_prepare."""
     for p in range(9):
@@ -570,7 +572,7 @@ def mat_d4(mv, mm, mp, c, d, coef, out):
                     mp[S_WT:S_WT + 1], out)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def mat_d3_vec(mv, mm, mp, c, d, out):
     """out = D3W[., c, d] (9-vector):
     sum_a g_a (sum p3_abm gc_b gd_m + sum p2_ab sig_b)
@@ -585,7 +587,7 @@ def mat_d3_vec(mv, mm, mp, c, d, out):
         _d3_vec(2, mv, mm, mp, c, d, out)
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _d3_vec(nk, mv, mm, mp, c, d, out):
     """mat_d3_vec for nk active invariants (a compile-time constant)."""
     g = mv[V_G:V_G + 3]

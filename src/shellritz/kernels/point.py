@@ -43,6 +43,7 @@ The load term -h qbar.r is linear in r and left to the discretization.
 import numpy as np
 from numba import njit, prange
 
+from . import KERNEL
 from .material import (M_AA, S_W, V_P, mat_combination, mat_d3, mat_d3_vec,
                        mat_prepare, new_state)
 from .small import chol3, chol3_inverse, chol3_solve, cross, inv3, mv3
@@ -124,7 +125,7 @@ def new_scratch():
 # helpers
 # ---------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _reference_geometry(ref, E, Lam, dgup, na, kap, gup):
     """Frame, dual basis and curvature of the reference surface at the point.
 
@@ -199,7 +200,7 @@ def _reference_geometry(ref, E, Lam, dgup, na, kap, gup):
     return H, K, True
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _to_local(X, E, out):
     """out = E^T X E (a reference-reference tensor in the local frame)."""
     for I in range(3):
@@ -211,14 +212,14 @@ def _to_local(X, E, out):
             out[I, J] = s
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _mm(a, b, out):
     for i in range(3):
         for j in range(3):
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _slot(U, C, out):
     """out[3 i + J] = sum_p U[i, p] C[p, J]."""
     for i in range(3):
@@ -229,7 +230,7 @@ def _slot(U, C, out):
             out[3 * i + J] = s
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_to_xi(G, C, coef, out):
     """out[3 p + i] += coef sum_J G[3 i + J] C[p, J]  (slot gradient -> xi)."""
     for p in range(9):
@@ -240,7 +241,7 @@ def _add_to_xi(G, C, coef, out):
             out[3 * p + i] += coef * s
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _matvec9(M, x, out):
     for p in range(9):
         s = 0.0
@@ -249,7 +250,7 @@ def _matvec9(M, x, out):
         out[p] = s
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _dot9(a, b):
     s = 0.0
     for p in range(9):
@@ -257,7 +258,7 @@ def _dot9(a, b):
     return s
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _solve_b(Binv, R, out):
     """out[k, q] = -(B^{-1} R)[k, q] for the NV columns of R (3 x NV)."""
     for k in range(3):
@@ -265,7 +266,7 @@ def _solve_b(Binv, R, out):
             out[k, q] = -(Binv[k, 0] * R[0, q] + Binv[k, 1] * R[1, q] + Binv[k, 2] * R[2, q])
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _slot_jacobian(C, Zv, ncol, out):
     """out[(i,J), q] = d slot / d v_q with y2 fixed (blocks 0..4 direct,
     5..7 via Zv), for the first ncol columns q (the others are zero)."""
@@ -284,7 +285,7 @@ def _slot_jacobian(C, Zv, ncol, out):
                         out[r, q] += c * Zv[3 * p + i, q]
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _h_j(H, Jb, nb, out):
     """out[:, :nb] = H Jb[:, :nb] (9x9 times 9xnb)."""
     for p in range(9):
@@ -295,7 +296,7 @@ def _h_j(H, Jb, nb, out):
             out[p, q] = s
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _add_jt(Ja, na, T, nb, out):
     """out[:na, :nb] += Ja[:, :na]^T T[:, :nb]."""
     for a in range(na):
@@ -306,7 +307,7 @@ def _add_jt(Ja, na, T, nb, out):
             out[a, q] += s
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _right_map(M, Q, out):
     """out[p, (k,L)] = sum_J M[p, (k,J)] Q[L, J]  (M composed with dA -> dA Q)."""
     for p in range(9):
@@ -322,7 +323,7 @@ def _right_map(M, Q, out):
 # the kernel
 # ---------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(**KERNEL)
 def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
                  qbar, m, dm, y1, y2, grad, hess, sc):
     """Energy density L at one point, and grad (15) / hess (15x15) if asked.
@@ -381,21 +382,21 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     return L, OK
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _rot_t(E, x, out):
     """out = E^T x (global -> local components)."""
     for J in range(3):
         out[J] = E[0, J] * x[0] + E[1, J] * x[1] + E[2, J] * x[2]
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def _rot(E, x, out):
     """out = E x (local -> global components)."""
     for i in range(3):
         out[i] = E[i, 0] * x[0] + E[i, 1] * x[1] + E[i, 2] * x[2]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
                   qbar, m, dm, y1, y2, grad, hess, sc):
     """point_kernel with every vector in the local frame (see point_kernel)."""
@@ -759,7 +760,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     return L, OK
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _y1_residual(g0, m, y, D0, W, P, AA, res, B):
     """Residual c0 = P n - m, its Jacobian B (acoustic tensor), and the merit
     phi = g0 W - m.y whose minimizer over y is the root."""
@@ -777,7 +778,7 @@ def _y1_residual(g0, m, y, D0, W, P, AA, res, B):
     return g0 * W - (m[0] * y[0] + m[1] * y[1] + m[2] * y[2]), rn
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, B, LB, work, Bs):
     """Newton with backtracking for P(F0) n = m, i.e. the minimum over y1 of
     g0 W(A0) - m.y1 (convex along the rank-one family F_t + y1 (x) n).
@@ -842,7 +843,7 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, B, LB, w
     return ERR_Y1_NEWTON
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc):
     """Membrane level: L = cW W(A0) - h m.y1, envelope in y1 (multiplier 0)."""
     Lx = sc[14]

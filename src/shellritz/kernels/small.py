@@ -7,15 +7,17 @@ run without heap allocation inside element loops.
 import numpy as np
 from numba import njit
 
+from . import KERNEL
 
-@njit(cache=True, inline="always")
+
+@njit(**KERNEL, inline="always")
 def det3(a):
     return (a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
             - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
             + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def cof3(a, out):
     """Cofactor matrix, out[i, j] = d det(a) / d a[i, j]."""
     out[0, 0] = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
@@ -29,7 +31,7 @@ def cof3(a, out):
     out[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def inv3(a, out):
     """Inverse of a 3x3 matrix; returns the determinant (out untouched if 0)."""
     d = det3(a)
@@ -47,14 +49,14 @@ def inv3(a, out):
     return d
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def cross(a, b, out):
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def chol3(b, out):
     """Cholesky factor (lower) of a symmetric 3x3 matrix.
 
@@ -89,7 +91,7 @@ def chol3(b, out):
     return True
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def chol3_inverse(lo, out):
     """out = (L L^T)^{-1} from the Cholesky factor L (symmetric result).
 
@@ -110,7 +112,7 @@ def chol3_inverse(lo, out):
     out[1, 2] = out[2, 1] = m21 * i22
 
 
-@njit(cache=True, inline="always")
+@njit(**KERNEL, inline="always")
 def mv3(a, x, out):
     """out = a x for a 3x3 matrix (x may alias out)."""
     x0, x1, x2 = x[0], x[1], x[2]
@@ -119,7 +121,7 @@ def mv3(a, x, out):
     out[2] = a[2, 0] * x0 + a[2, 1] * x1 + a[2, 2] * x2
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def chol3_solve(lo, rhs, out):
     """Solve (L L^T) x = rhs for one right-hand side (rhs may alias out)."""
     z0 = rhs[0] / lo[0, 0]
