@@ -286,14 +286,25 @@ def _slot_jacobian(C, Zv, ncol, out):
 
 
 @njit(**KERNEL, inline="always")
-def _h_j(H, Jb, nb, out):
-    """out[:, :nb] = H Jb[:, :nb] (9x9 times 9xnb)."""
+def _h_j(H, Jb, nb, out, transpose=False):
+    """out[:, :nb] = H Jb[:, :nb] (9x9 times 9xnb), or H^T Jb[:, :nb]."""
     for p in range(9):
         for q in range(nb):
             s = 0.0
             for r in range(9):
-                s += H[p, r] * Jb[r, q]
+                s += (H[r, p] if transpose else H[p, r]) * Jb[r, q]
             out[p, q] = s
+
+
+@njit(**KERNEL, inline="always")
+def _add_jt_upper(Ja, na, T, out):
+    """Upper triangle of out[:na, :na] += Ja[:, :na]^T T[:, :na] (a symmetric product)."""
+    for a in range(na):
+        for q in range(a, na):
+            s = 0.0
+            for p in range(9):
+                s += Ja[p, a] * T[p, q]
+            out[a, q] += s
 
 
 @njit(**KERNEL, inline="always")
@@ -712,18 +723,15 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for s in range(1, 4):
         _slot_jacobian(CA[s], Zv, NV, Js[s])
     T, W01, Wa = sc[18], sc[29][0], sc[29][1]
+    # the upper triangle of hess is accumulated, then mirrored
     for a in range(NV):
         for b in range(NV):
             hess[a, b] = 0.0
     _h_j(H00, Js[0], NX, T)
-    _add_jt(Js[0], NX, T, NX, hess)
-    # cross blocks: M = J1^T (H01^T J0) + sum_a Ja^T (H0a^T J0), added as M and M^T
-    for p in range(9):
-        for q in range(p + 1, 9):
-            H01[p, q], H01[q, p] = H01[q, p], H01[p, q]
-            for a in range(2):
-                H0a[a][p, q], H0a[a][q, p] = H0a[a][q, p], H0a[a][p, q]
-    _h_j(H01, Js[0], NX, W01)
+    _add_jt_upper(Js[0], NX, T, hess)
+    # cross blocks: M = J1^T (H01^T J0) + sum_a Ja^T (H0a J0) (H0a symmetric),
+    # added as M and M^T
+    _h_j(H01, Js[0], NX, W01, True)
     Mx = sc[30]
     for a in range(NV):
         for q in range(NX):
@@ -732,15 +740,14 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for a in range(2):
         _h_j(H0a[a], Js[0], NX, Wa)
         _add_jt(Js[2 + a], NV, Wa, NX, Mx)
-    for a in range(NV):
-        for q in range(NX):
-            hess[a, q] += Mx[a, q]
-            hess[q, a] += Mx[a, q]
+    for i in range(NX):
+        for j in range(i, NV):
+            hess[i, j] += Mx[j, i] + (Mx[i, j] if j < NX else 0.0)
     for p in range(9):
         for q in range(9):
             work[p, q] = 2.0 * cB * AA[p, q]
     _h_j(work, Js[1], NV, T)
-    _add_jt(Js[1], NV, T, NV, hess)
+    _add_jt_upper(Js[1], NV, T, hess)
     # d2/dy2 dv = D0^k . (H10 J0 + H11 J1) = D0^k . (W01 + T); d2/dy2^2 = 2 cB B / g0
     Ly = sc[19]
     for k in range(3):
@@ -750,13 +757,17 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
                 p = 3 * k + J
                 s += D0[k, p] * (T[p, q] + (W01[p, q] if q < NX else 0.0))
             Ly[k, q] = s
+    # minus Ly^T (2 cB B / g0)^{-1} Ly
+    BLy = sc[18][0:3]            # (work, T is done) B^{-1} Ly
     f = g0 / (2.0 * cB)
-    for q in range(NV):
-        for k in range(3):
-            rhs[k] = Ly[k, q]
-        mv3(Binv, rhs, rhs)
-        for a in range(NV):
-            hess[a, q] -= f * (Ly[0, a] * rhs[0] + Ly[1, a] * rhs[1] + Ly[2, a] * rhs[2])
+    for k in range(3):
+        for q in range(NV):
+            BLy[k, q] = f * (Binv[k, 0] * Ly[0, q] + Binv[k, 1] * Ly[1, q] + Binv[k, 2] * Ly[2, q])
+    for i in range(NV):
+        for j in range(i, NV):
+            hess[i, j] -= Ly[0, i] * BLy[0, j] + Ly[1, i] * BLy[1, j] + Ly[2, i] * BLy[2, j]
+        for j in range(i):
+            hess[i, j] = hess[j, i]
     return L, OK
 
 
