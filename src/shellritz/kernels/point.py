@@ -98,7 +98,7 @@ def new_scratch():
             np.zeros((4, 9, 3)),    # 7 CA: slot coefficients A0, A1, A1_1, A1_2
             np.zeros((3, 9)),       # 8 U
             np.zeros((4, 9)),       # 9 slot values
-            np.zeros((12, 9)),      # 10 vectors: D0^k(3), D1_a^k(6), X, Xtot, work
+            np.zeros((13, 9)),      # 10 vectors: D0^k(3), D1_a^k(6), X, Xtot, work x2
             np.zeros((6, 3)),       # 11 small vectors
             np.zeros((3, 3, 3)),    # 12 B, chol(B), work
             np.zeros((10, 9, 9)),   # 13 9x9: D3(A1a) x2, (unused x2), H00, H01, H0a x2, work x2
@@ -248,6 +248,14 @@ def _matvec9(M, x, out):
         for q in range(9):
             s += M[p, q] * x[q]
         out[p] = s
+
+
+@njit(**KERNEL, inline="always")
+def _matvec_block(M, d, k, out):
+    """out = M d for a direction d that is zero outside block k (d = e_k (x) w,
+    as D0^k and D1a^k)."""
+    for p in range(9):
+        out[p] = M[p, 3 * k] * d[3 * k] + M[p, 3 * k + 1] * d[3 * k + 1] + M[p, 3 * k + 2] * d[3 * k + 2]
 
 
 @njit(**KERNEL, inline="always")
@@ -600,7 +608,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         Lx[q] = 0.0
         for r in range(9):
             cx[r, q] = 0.0
-    gA = vec[10]
+    gA, X2 = vec[10], vec[12]
     # dLtil/dA0 = cW P + AA X + cB D3(A1) A1 + P Q0^T
     _matvec9(AA, X, gA)
     mat_d3_vec(mv, mm, mp, A1, A1, tmp)
@@ -624,15 +632,14 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for a in range(2):
         mat_d3(mv, mm, mp, S[2 + a], d3a[a])
     for k in range(3):
-        _matvec9(AA, D0[k], tmp)
+        _matvec_block(AA, D0[k], k, tmp)
         _add_to_xi(tmp, CA[0], g0, cx[k])
         for a in range(2):
             _add_to_xi(tmp, CA[2 + a], g0, cx[3 + 3 * a + k])
-            _matvec9(d3a[a], D0[k], gA)
+            _matvec_block(d3a[a], D0[k], k, gA)
+            _matvec_block(AA, D1[3 * a + k], k, X2)
             for p in range(9):
-                gA[p] += t1a[a] * tmp[p]
-            _add_to_xi(gA, CA[0], g0, cx[3 + 3 * a + k])
-            _matvec9(AA, D1[3 * a + k], gA)
+                gA[p] += t1a[a] * tmp[p] + X2[p]
             _add_to_xi(gA, CA[0], g0, cx[3 + 3 * a + k])
     # c_z = [[B, 0, 0], [K1, B, 0], [K2, 0, B]] (blocks of cx in z = y1, Y1, Y2)
     # lam_a = -B^{-1} dLtil/dY_a ; lam_0 = -B^{-1}(dLtil/dy1 + K1^T lam_1 + K2^T lam_2)
@@ -874,7 +881,7 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc):
     for k in range(3):
         for q in range(NXI):
             cx[k, q] = 0.0
-        _matvec9(AA, D0[k], tmp)
+        _matvec_block(AA, D0[k], k, tmp)
         _add_to_xi(tmp, CA0, g0, cx[k])
     Zv = sc[16]
     _solve_b(Binv, cx[0:3], Zv[0:3])
