@@ -101,7 +101,7 @@ def new_scratch():
             np.zeros((13, 9)),      # 10 vectors: D0^k(3), D1_a^k(6), X, Xtot, work x2
             np.zeros((6, 3)),       # 11 small vectors
             np.zeros((3, 3, 3)),    # 12 B, chol(B), work
-            np.zeros((10, 9, 9)),   # 13 9x9: D3(A1a) x2, (unused x2), H00, H01, H0a x2, work x2
+            np.zeros((7, 9, 9)),    # 13 9x9: D3(A1a) x2, H00, H01, H0a x2, work
             np.zeros(NXI),          # 14 dLtil/dxi
             np.zeros((9, NXI)),     # 15 dc/dxi
             np.zeros((9, NV)),      # 16 Zv = d(y1, Y1, Y2)/dv
@@ -690,7 +690,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
             for a in range(2):
                 la = lam[3 + 3 * a + k]
                 Xt[p] += g0 * la * (t1a[a] * D0[k, p] + D1[3 * a + k, p])
-    H00, H01, H0a, work = M9[4], M9[5], M9[6:8], M9[8]
+    H00, H01, H0a, work = M9[2], M9[3], M9[4:6], M9[6]
     # H00 = cW AA + D3(Xt) + cB D4(A1, A1) + g0 sum_a D4(A1a, Dla)
     pc, pd, pw = sc[27][0], sc[27][1], sc[28]
     for p in range(9):
@@ -887,7 +887,7 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc):
     _solve_b(Binv, cx[0:3], Zv[0:3])
     Js = sc[17]
     _slot_jacobian(CA0, Zv, NX, Js[0])
-    H = sc[13][4]
+    H = sc[13][2]
     for p in range(9):
         for q in range(9):
             H[p, q] = cW * AA[p, q]
