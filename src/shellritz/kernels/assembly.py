@@ -131,7 +131,8 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
 
 @njit(cache=True)
 def _node_elements(tri, n_nodes):
-    """The elements of node n: adj[start[n]:start[n + 1]] (CSR)."""
+    """The elements of node n: adj[start[n]:start[n + 1]] (CSR), and the
+    largest number of elements at a node."""
     start = np.zeros(n_nodes + 1, np.int64)
     for e in range(tri.shape[0]):
         for i in range(3):
@@ -144,7 +145,10 @@ def _node_elements(tri, n_nodes):
         for i in range(3):
             adj[fill[tri[e, i]]] = e
             fill[tri[e, i]] += 1
-    return start, adj
+    valence = 0
+    for n in range(n_nodes):
+        valence = max(valence, start[n + 1] - start[n])
+    return start, adj, valence
 
 
 @njit(cache=True)
@@ -152,10 +156,7 @@ def color_elements(tri, n_nodes):
     """Greedy colouring: colour[e] is the smallest colour not taken by an
     element sharing a node with e (7 to 9 colours on the meshes tested)."""
     ne = tri.shape[0]
-    start, adj = _node_elements(tri, n_nodes)
-    valence = 0
-    for n in range(n_nodes):
-        valence = max(valence, start[n + 1] - start[n])
+    start, adj, valence = _node_elements(tri, n_nodes)
     colour = -np.ones(ne, np.int64)
     taken = -np.ones(3 * valence + 1, np.int64)    # taken[c] == e: c is used next to e
     for e in range(ne):
@@ -251,12 +252,9 @@ def hessian_pattern(tri, free_index):
     n = free_index.shape[0]
     ne = tri.shape[0]
     # nbr[nptr[I]:nptr[I + 1]]: nodes J <= I sharing an element with I, sorted
-    start, adj = _node_elements(tri, n)
+    start, adj, valence = _node_elements(tri, n)
     nptr = np.zeros(n + 1, np.int64)
     nbr = np.empty(3 * start[n], np.int64)
-    valence = 0
-    for I in range(n):
-        valence = max(valence, start[I + 1] - start[I])
     buf = np.empty(3 * valence, np.int64)
     m = 0
     for I in range(n):
