@@ -17,7 +17,6 @@ The continuation parameter t in [0, 1] ramps the growth
 (``t * load``) and prescribed motions.
 """
 
-import time
 import warnings
 from dataclasses import dataclass
 
@@ -32,7 +31,7 @@ from .kernels.point import STATUS_TEXT
 from .materials import Law
 from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id
-from .solve import EvaluationError, NewtonOptions, SolveError, continuation
+from .solve import EvaluationError, Solvable
 
 __all__ = ["Shell", "Result"]
 
@@ -63,7 +62,7 @@ def _field(value, n, shape, name):
     raise ValueError(f"{name}: expected shape {shape} or {(n,) + shape}, got {a.shape}")
 
 
-class Shell:
+class Shell(Solvable):
     """A thin shell on a triangulated reference surface (DKT discretization).
 
     Parameters
@@ -536,22 +535,34 @@ class Shell:
         K = sp.csr_matrix((data, self._indices, self._indptr), shape=(nf, nf))
         return E, g, K
 
+    def block_layout(self):
+        """Nodal blocks for AMG: (9, free DOFs in the full numbering, 9 n,
+        callable -> the six rigid-body modes of the current state (9 n, 6):
+        translations, and rotations acting on positions and both tangent
+        derivatives)."""
+        n = self.mesh.n_nodes
+
+        def rigid_modes():
+            B = np.zeros((n, 3, 3, 6))
+            B[:, 0, :, :3] = np.eye(3)
+            for k in range(3):
+                w = np.eye(3)[k]
+                B[:, :, :, 3 + k] = np.cross(w, self.U)        # w x r, w x a_1, w x a_2
+            return B.reshape(9 * n, 6)
+        return 9, self.free, 9 * n, rigid_modes
+
+    def monitor(self):
+        """Positions of the monitored nodes (solve(monitor=...))."""
+        nodes = getattr(self, "_monitor_nodes", None)
+        return self.U[nodes, 0] if nodes is not None else np.zeros(0)
+
     # ------------------------------------------------------------------ solve
-    def solve(self, steps=1, verbose=True, rtol=1e-9, max_iter=40, min_dt=1e-4):
-        """Equilibrium at t = 1 by continuation from the reference (t = 0)."""
-        self._setup()
-        t0 = time.perf_counter()
-        opts = NewtonOptions(rtol=rtol, max_iter=max_iter, verbose=verbose)
-        if verbose:
-            print(f"shellritz: {self.mesh.n_triangles} triangles, {len(self.free)} free DOFs, "
-                  f"level {self.level}, {len(self.wts)}-point rule", flush=True)
-        try:
-            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt)
-        except SolveError as exc:
-            exc.result = Result(self, None, time.perf_counter() - t0, converged=False,
-                                t=exc.last_t)
-            raise
-        return Result(self, history, time.perf_counter() - t0, converged=True, t=1.0)
+    def _describe(self):
+        return (f"shellritz: {self.mesh.n_triangles} triangles, {len(self.free)} free DOFs, "
+                f"level {self.level}, {len(self.wts)}-point rule")
+
+    def _result(self, history, wall_s, converged, t):
+        return Result(self, history, wall_s, converged=converged, t=t)
 
 
 def _volume_terms(tri, r, mode):

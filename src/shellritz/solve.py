@@ -1,5 +1,5 @@
-"""Newton's method with backtracking line search, sparse LDL^T solves and
-continuation in a load/growth parameter t in [0, 1].
+"""Equilibria by Newton's method: trust region or line search, continuation
+in a load/growth parameter t (adaptive steps or arc length), stability.
 
 The solver works on a *problem* object (the DKT, axisymmetric and
 plane-strain engines provide one) with
@@ -7,24 +7,44 @@ plane-strain engines provide one) with
     problem.set_parameter(t)            growth, loads and prescribed values at t
     problem.evaluate(x, mode)           -> (E, g, K) on the free DOFs x;
                                            mode 0: (E, None, None), 1: (E, g, None),
-                                           2: (E, g, K) with K the lower triangle (CSR)
+                                           2: (E, g, K) with K the lower triangle (CSR,
+                                           one sparsity pattern per problem)
     problem.free_state() / problem.set_free_state(x)
     problem.save_point() / problem.restore_point(saved)   rollback (warm starts etc.)
+    problem.load_scale(), problem.size_scale(), problem.energy_magnitude()
+    problem.block_layout()              optional: nodal blocks and rigid motions (the free
+                                           rigid motions are kept out of the steps; AMG)
+    problem.monitor()                   optional: numbers recorded along an arc-length path
 
 ``evaluate`` raises :class:`EvaluationError` where the energy is undefined
-(inverted material, loss of ellipticity, ...); the line search treats that as
-+inf.  A Hessian that is not positive definite is shifted (and the shift
-reported), never a crash.  When a continuation step fails it is halved; if
-the step becomes too small a :class:`SolveError` is raised that carries the
-last converged state.
+(inverted material, loss of ellipticity, ...); the trust region and the line
+search treat that as +inf and step back.
+
+One Newton step = one Hessian assembly and one factorization (or AMG
+preconditioner reuse): the step solves the trust-region model by
+Steihaug-Toint conjugate gradients preconditioned by the factorization of
+the Hessian where it is positive definite (then the step is Newton's, in one
+CG iteration) or else by the last positive definite factorization, so that CG
+finds the negative curvature directions and the step follows them to the
+trust-region boundary (linalg.py).  The line-search variant takes the
+truncated Newton-CG direction with Armijo backtracking.  At every converged
+state the inertia of the Hessian is known from its factorization; an
+unstable equilibrium is reported with its lowest eigenvalues and, by
+default, left along its most unstable mode to a stable state.
 """
 
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+from .linalg import (LinearSolverError, jacobi, lower_matvec, make_linear_solver, resolve_method,
+                     free_rigid_modes, projector, steihaug_cg)
+
+GLOBALIZATIONS = ("trust-region", "line-search")
+PATHS = ("load", "arclength")
+STABILITY = ("auto", "inertia", "eigen", "off")
 
 
 class EvaluationError(RuntimeError):
@@ -32,7 +52,9 @@ class EvaluationError(RuntimeError):
 
 
 class SolveError(RuntimeError):
-    """Continuation failed; ``.last`` holds the last converged parameter and state."""
+    """Continuation failed; ``.last_t`` is the last converged parameter,
+    ``.history`` the solver history and ``.result`` (set by the engine) the
+    last converged state."""
 
     def __init__(self, msg, last_t=None, history=None):
         super().__init__(msg)
@@ -41,14 +63,38 @@ class SolveError(RuntimeError):
 
 
 @dataclass
-class NewtonOptions:
+class SolverOptions:
+    """Options of :func:`continuation` (keyword arguments of the engines' solve)."""
+
     rtol: float = 1e-9          # |g| <= rtol * max(|g| at the step start, |external load|)
     xtol: float = 1e-13         # or a full Newton step below xtol * problem size
     ftol: float = 1e-15         # |g| floor: the force of a relative move ftol on the stiffest DOF
-    max_iter: int = 40
+    max_iter: int = 40          # Newton iterations per continuation step
+    verbose: bool = True
+    linear: str = "auto"        # linalg.METHODS
+    globalization: str = "trust-region"   # or "line-search"
+    path: str = "load"          # "load": adaptive steps in t; "arclength": passes limit points
+    stability: str = "auto"     # "inertia" (direct methods), "eigen" (+ lowest eigenpairs), "off";
+    #                             auto: inertia with a direct method, off with AMG
+    escape: bool = True         # leave an unstable equilibrium along its most unstable mode
+    max_escapes: int = 8        # per continuation step
     armijo: float = 1e-4
     min_alpha: float = 1e-8
-    verbose: bool = True
+    max_cg: int = 300           # conjugate-gradient iterations per Newton step
+    arc_max_steps: int = 400    # arc length: path steps before giving up
+    arc_ds: float = None        # arc length: first step (default: 1/steps in t)
+    arc_max_ds: float = None    # arc length: largest step (default: 4x the first)
+
+    def __post_init__(self):
+        for name, allowed in (("globalization", GLOBALIZATIONS), ("path", PATHS),
+                              ("stability", STABILITY)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name}={getattr(self, name)!r}: choose one of {', '.join(allowed)}")
+        resolve_method(self.linear, 0)          # checks the name and availability
+        for name in ("rtol", "max_iter", "max_cg", "arc_max_steps"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive, got {v!r}")
 
 
 @dataclass
@@ -57,182 +103,416 @@ class Iteration:
     it: int
     energy: float
     grad_norm: float
-    step: float
-    shift: float
-    seconds: float
+    step: float                 # line search: alpha; trust region: ||p||_M of the step taken
+    radius: float               # trust radius (inf: unlimited), nan for the line search
+    accepted: bool
+    negative: int               # negative eigenvalues of the Hessian (None: not known)
+    krylov_its: int
+    krylov_exit: str
+    linear: str                 # linear method used
+    setup_s: float              # factorization / AMG set-up time
+    solve_s: float              # Krylov solve time
+    seconds: float              # whole iteration (assembly included)
 
 
 @dataclass
 class SolveHistory:
     iterations: list = field(default_factory=list)
-    steps: list = field(default_factory=list)     # (t, converged, n_iterations)
-    stable: bool = True         # Hessian positive definite at the last converged state
-    unstable_modes: int = 0     # its number of negative eigenvalues (None: singular)
+    steps: list = field(default_factory=list)     # (t, converged)
+    stable: bool = True         # the last converged state is stable (None: not assessed)
+    unstable_modes: int = 0     # negative eigenvalues of its Hessian (None: not known)
+    lowest_eigenvalues: list = field(default_factory=list)   # with stability="eigen"
+    escapes: list = field(default_factory=list)   # dicts: t, negative, eigenvalue, amplitude
+    notes: list = field(default_factory=list)     # fallbacks, warnings
+    path: list = field(default_factory=list)      # arc length: dicts t, energy, negative, monitor
+    linear: str = ""            # linear method
+    factorizations: int = 0
+    assemblies: int = 0
+
+    def write_path(self, filename):
+        """The arc-length path (t, energy, negative eigenvalues, monitored
+        values) as CSV."""
+        import csv
+        if not self.path:
+            raise ValueError("no arc-length path recorded (solve with path='arclength')")
+        keys = ["t", "energy", "negative"]
+        width = len(self.path[0].get("monitor", ()))
+        with open(filename, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(keys + [f"monitor_{k}" for k in range(width)])
+            for p in self.path:
+                w.writerow([p[k] for k in keys] + list(p.get("monitor", ())))
 
 
-# Smallest shift of the retry ladder, relative to the largest diagonal entry of
-# the Hessian.  Newton lowers its shift 100x per iteration below this level:
-# such a shift only regularizes exact null modes (e.g. a free rigid
-# translation) and the step counts as an undamped Newton step.
-MIN_SHIFT = 1e-8
+class _Linear:
+    """The linear solver of a problem, created at its first Hessian (the
+    sparsity pattern is fixed per problem), with the fallback from AMG to a
+    direct method."""
+
+    def __init__(self, problem, opts, history):
+        self.problem, self.opts, self.history = problem, opts, history
+        self.solver = None
+        self.amg_failures = 0
+        self.rigid = None          # free rigid motions (orthonormal columns) or None
+        self.project = None
+
+    def factorize(self, K):
+        """Factorize (or prepare the preconditioner for) K; returns the
+        number of negative eigenvalues (None: unknown) and the set-up time."""
+        t0 = time.perf_counter()
+        # the free rigid motions of the current state (rotations turn with it)
+        layout = self.problem.block_layout() if hasattr(self.problem, "block_layout") else None
+        self.rigid = free_rigid_modes(layout)
+        self.project = projector(self.rigid)
+        if self.solver is None:
+            self.solver = make_linear_solver(self.opts.linear, K.shape[0], K.indptr, K.indices, layout,
+                                             singular=self.rigid is not None)
+            self.history.linear = self.solver.name
+        try:
+            negative = self.solver.factorize(K)
+        except LinearSolverError as exc:
+            self.history.notes.append(f"{self.solver.name}: {exc}")
+            negative = None
+        self.history.factorizations += 1
+        return negative, time.perf_counter() - t0
+
+    def fall_back_to_direct(self, K, why):
+        method = "pardiso" if resolve_method("auto", 0) == "pardiso" else "superlu"
+        self.history.notes.append(f"AMG: {why}; falling back to the direct solver '{method}'")
+        if self.opts.verbose:
+            print(f"    AMG: {why}; falling back to '{method}'", flush=True)
+        self.solver.release()
+        self.solver = make_linear_solver(method, K.shape[0], K.indptr, K.indices,
+                                         singular=self.rigid is not None)
+        self.history.linear = f"amg->{method}"
+        return self.factorize(K)
+
+    @property
+    def direct(self):
+        return self.solver is not None and self.solver.direct
+
+    def preconditioner(self, K):
+        M = self.solver.preconditioner() if self.solver is not None else None
+        return M if M is not None else jacobi(K)
 
 
-def symmetric_from_lower(K):
-    """The full symmetric matrix (CSC) of its lower triangle K (CSR)."""
-    return (K + sp.tril(K, -1).T).tocsc()
+def _forcing(opts, exact, gnorm, gnorm_prev, eta_prev):
+    """Relative tolerance of the Krylov solve: tight with the factorization
+    of the current Hessian as preconditioner (an iteration or two anyway),
+    else Eisenstat-Walker choice 2 (gamma 0.9, exponent 2, safeguarded):
+    inexact Newton."""
+    if exact:
+        return 1e-10
+    if gnorm_prev is None:
+        return 0.1
+    eta = 0.9 * (gnorm / gnorm_prev) ** 2
+    if 0.9 * eta_prev ** 2 > 0.1:
+        eta = max(eta, 0.9 * eta_prev ** 2)
+    return float(min(max(eta, 1e-10), 0.1))
 
 
-def factorize_if_positive_definite(A, shift=0.0):
-    """Sparse LDL^T factorization of the symmetric matrix A + shift I (A full,
-    CSC), or None if it is not positive definite.
-
-    SuperLU (scipy) in symmetric mode with diagonal pivots only and the
-    minimum-degree ordering of A^T + A computes A = P^T L U P with U = D L^T,
-    so by Sylvester's law of inertia A is positive definite exactly when every
-    pivot diag(U) is positive.  (Measured on DKT Hessians with 7k-180k DOFs:
-    as fast as to 2.6x faster than CHOLMOD through cholespy, and cholespy leaks
-    the whole factor on every failed, i.e. not positive definite,
-    factorization.)  Returns (factorization or None, number of negative
-    pivots or None when A is singular).
-    """
-    if shift:
-        A = A + shift * sp.identity(A.shape[0], format="csc")
-    try:
-        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options=dict(SymmetricMode=True))
-    except RuntimeError:                 # an exactly zero pivot: A singular
-        return None, None
-    if not np.array_equal(lu.perm_r, lu.perm_c):
-        return None, None                # pivoting left the diagonal: no inertia
-    negative = int(np.count_nonzero(~(lu.U.diagonal() > 0.0)))
-    return (lu if negative == 0 else None), negative
-
-
-def shifted_solve(K, rhs, shift=0.0):
-    """Solve (K + shift I) x = rhs with K + shift I positive definite; K: lower
-    triangle, CSR.
-
-    Where K + shift I is not positive definite the shift is raised (from
-    MIN_SHIFT times the largest diagonal entry, x10 per try) and the solve
-    retried.  Returns (x, shift used).
-    """
-    scale = max(np.abs(K.diagonal()).max(), 1e-300)
-    A = symmetric_from_lower(K)
-    while True:
-        lu, _ = factorize_if_positive_definite(A, shift)
-        if lu is not None:
-            x = lu.solve(np.asarray(rhs, dtype=np.float64))
-            if np.all(np.isfinite(x)):
-                return x, shift
-        shift = max(MIN_SHIFT * scale, 10.0 * shift)
-        if shift > 1e3 * scale:
-            raise EvaluationError("Hessian could not be made positive definite by shifting")
-
-
-def newton(problem, t, opts, history, g_ref):
-    """Minimize at fixed t from the current state. Returns True on convergence."""
+def minimize(problem, t, opts, history, g_ref, lin):
+    """Newton iterations at fixed t from the current state.  Returns the
+    Hessian (lower CSR) at the equilibrium reached, or None on failure."""
     x = problem.free_state()
     try:
         E, g, K = problem.evaluate(x, 2)
     except EvaluationError as exc:
         if opts.verbose:
             print(f"    t={t:.4f}: start state not admissible ({exc})")
-        return False
+        return None
+    history.assemblies += 1
     gnorm = np.linalg.norm(g)
     size = problem.size_scale()
     # floor: round-off level, the force of a relative displacement ftol on the stiffest DOF
-    floor = opts.ftol * size * (np.abs(K.diagonal()).max() if K.shape[0] else 0.0)
+    stiffest = np.abs(K.diagonal()).max() if K.shape[0] else 0.0
+    floor = opts.ftol * size * stiffest
     tol = max(opts.rtol * max(g_ref, gnorm), floor)
-    xtol = opts.xtol * size
+    # round-off of the energy, for accepting steps by the gradient where the
+    # energy test cannot tell: relative to its terms, or to the energy of a
+    # unit strain of the stiffest DOF over the problem size (a stress-free
+    # state has no terms to measure it by)
+    noise = lambda E: 1e3 * np.finfo(float).eps * max(problem.energy_magnitude(), abs(E),
+                                                      stiffest * size * size)
+    trust = opts.globalization == "trust-region"
+    radius = np.inf
     last_step = np.inf
-    shift = 0.0
-    gnorms = [gnorm]
-    energies = [E]
+    gnorms, energies = [gnorm], [E]
+    factorized = False          # the factorization belongs to the current x
+    gnorm_prev, eta = None, 0.1
+    first_norm = None           # size of the first step (trust region collapse test)
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
-        if gnorm <= tol or last_step <= xtol:
-            _, negative = (factorize_if_positive_definite(symmetric_from_lower(K))
-                           if len(x) else (None, 0))
-            history.stable = negative == 0
-            history.unstable_modes = negative
-            return True
-        # stagnation: |g| does not fall and neither does the energy (escaping an
-        # unstable state lowers E while |g| grows: that is progress)
-        stalled = (it >= 8 and gnorm > 0.5 * gnorms[-7]
+        if gnorm <= tol or last_step <= opts.xtol * size:
+            return K
+        stalled = (len(gnorms) >= 8 and gnorm > 0.5 * gnorms[-7]
                    and energies[-7] - E <= 1e-6 * max(problem.energy_magnitude(), abs(E)))
         if it == opts.max_iter or stalled:
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e})")
-            break
-        # try a much smaller shift than last time (Levenberg-Marquardt style): a
-        # lingering shift damps the soft (bending) modes, whose eigenvalues can
-        # be 1e-8 of the largest
-        p, shift = shifted_solve(K, -g, 0.01 * shift)
-        undamped = shift < MIN_SHIFT * np.abs(K.diagonal()).max()
+            return None
+        setup = 0.0
+        if not factorized:
+            negative, setup = lin.factorize(K)
+            factorized = True
+        exact = lin.solver.current_is_positive_definite()
+        matvec = lower_matvec(K)
+        eta = _forcing(opts, exact, gnorm, gnorm_prev, eta)
+        ts = time.perf_counter()
+        if exact:
+            r = np.inf             # the Newton step, truncated to the region below
+        elif trust and not np.isfinite(radius):
+            # indefinite (or unknown) Hessian: a finite region, the size of the
+            # preconditioned gradient step
+            r = np.sqrt(max(-(g @ lin.preconditioner(K)(-g)), 0.0)) or 1.0
+        else:
+            r = radius if trust else np.inf
+        try:
+            p, info = steihaug_cg(matvec, g, lin.preconditioner(K), r, eta, opts.max_cg, lin.project)
+        except LinearSolverError as exc:
+            history.notes.append(f"t={t:.4g} it={it}: {exc}; Jacobi preconditioner")
+            p, info = steihaug_cg(matvec, g, jacobi(K), r, eta, opts.max_cg, lin.project)
+        newton_step = exact and info["reason"] == "converged"
+        if newton_step and np.abs(p).max() <= opts.xtol * size:
+            return K                # the Newton correction is at round-off
+        if trust and newton_step and info["norm_M"] > radius:
+            p *= radius / info["norm_M"]           # scaled Newton step on the boundary
+            info.update(norm_M=radius, reason="boundary")
+            newton_step = False
+        first_norm = first_norm or info["norm_M"]
+        solve_s = time.perf_counter() - ts
+        if not lin.direct:
+            krylov_ok = info["reason"] != "maxiter"
+            if lin.solver.note_iterations(info["iterations"]) and opts.verbose:
+                print(f"    AMG hierarchy rebuilt ({info['iterations']} CG iterations)", flush=True)
+            lin.amg_failures = 0 if krylov_ok else lin.amg_failures + 1
+            if lin.amg_failures >= 2:
+                negative, more = lin.fall_back_to_direct(K, f"CG reached {opts.max_cg} iterations twice")
+                setup += more
+                continue
+        Kp = matvec(p)
         slope = g @ p
-        # at the round-off floor: the predicted decrease -g.p/2 is below the
-        # round-off of the energy and the last full step no longer reduced |g|
+        predicted = -(slope + 0.5 * (p @ Kp))
+        # at the round-off floor: the predicted decrease is below the round-off
+        # of the energy and the last full step no longer reduced |g|
         # (ill-conditioned problems, e.g. very thin shells, stop here)
-        if (undamped and len(gnorms) > 1 and gnorm > 0.2 * gnorms[-2]
-                and -slope <= 1e3 * np.finfo(float).eps * problem.energy_magnitude()):
+        if (newton_step and len(gnorms) > 1 and gnorm > 0.2 * gnorms[-2]
+                and abs(predicted) <= 1e3 * np.finfo(float).eps * problem.energy_magnitude()):
             last_step = 0.0
             continue
-        if slope >= 0:            # shifted system still not a descent direction
-            p = -g
-            slope = -gnorm ** 2
-        alpha = 1.0
         saved = problem.save_point()
-        while True:
-            xn = x + alpha * p
-            try:
-                En, _, _ = problem.evaluate(xn, 0)
-                ok = np.isfinite(En) and En <= E + opts.armijo * alpha * slope
-                # near the solution the energy test drowns in round-off: accept
-                # full steps that reduce the gradient instead
-                if not ok and alpha == 1.0 and abs(En - E) <= 1e-12 * max(abs(E), 1e-300) * 1e3:
-                    _, gn, _ = problem.evaluate(xn, 1)
-                    ok = np.linalg.norm(gn) < gnorm
-            except EvaluationError:
-                ok = False
+        if trust:
+            accepted, En, alpha = _trust_trial(problem, x, p, E, gnorm, predicted, noise(E))
+            ratio_good = accepted and (En is None or E - En >= 0.75 * predicted)
+            if not accepted and newton_step and abs(predicted) <= noise(E) and En is not None:
                 problem.restore_point(saved)
-            if ok:
-                break
-            alpha *= 0.5
-            if alpha < opts.min_alpha:
+                return K            # the full Newton step is lost in round-off: converged
+            if not accepted:
+                problem.restore_point(saved)
+                radius = 0.25 * info["norm_M"]
+            elif ratio_good and info["reason"] in ("boundary", "negative curvature"):
+                radius = 2.0 * info["norm_M"]
+            elif accepted and En is not None and E - En < 0.25 * predicted:
+                radius = 0.5 * info["norm_M"]
+            if not accepted and radius < 1e-12 * first_norm:
+                if opts.verbose:
+                    print(f"    t={t:.4f} it={it}: trust region collapsed")
+                return None
+        else:
+            if slope >= 0:             # not a descent direction (cannot happen with SPD M)
+                p, slope = -g, -gnorm ** 2
+            accepted, alpha = _line_search(problem, x, p, E, gnorm, slope, opts, noise(E))
+            if not accepted and newton_step and abs(predicted) <= noise(E):
+                problem.restore_point(saved)
+                return K            # the full Newton step is lost in round-off: converged
+            if not accepted:
                 problem.restore_point(saved)
                 if opts.verbose:
                     print(f"    t={t:.4f} it={it}: line search failed")
-                return False
-        x = xn
-        last_step = np.abs(p).max() if alpha == 1.0 and undamped else np.inf
-        problem.set_free_state(x)
-        try:
-            E, g, K = problem.evaluate(x, 2)
-        except EvaluationError:
-            problem.restore_point(saved)
-            return False
-        gnorm = np.linalg.norm(g)
-        gnorms.append(gnorm)
-        energies.append(E)
-        rec = Iteration(t, it, E, gnorm, alpha, shift, time.perf_counter() - t0)
+                return None
+        rec = Iteration(t, it, E, gnorm, info["norm_M"] if trust else alpha,
+                        radius if trust else np.nan, accepted, negative, info["iterations"],
+                        info["reason"], lin.solver.name, setup, solve_s, 0.0)
+        if accepted:
+            x = x + alpha * p
+            last_step = np.abs(p).max() if newton_step and alpha == 1.0 else np.inf
+            problem.set_free_state(x)
+            try:
+                E, g, K = problem.evaluate(x, 2)
+            except EvaluationError:
+                problem.restore_point(saved)
+                return None
+            history.assemblies += 1
+            factorized = False
+            gnorm_prev, gnorm = gnorm, np.linalg.norm(g)
+            gnorms.append(gnorm)
+            energies.append(E)
+            rec.energy, rec.grad_norm = E, gnorm
+        rec.seconds = time.perf_counter() - t0
         history.iterations.append(rec)
         if opts.verbose:
-            print(f"    t={t:.4f} it={it:2d}  E={E: .10e}  |g|={gnorm:.3e}  step={alpha:.3g}"
-                  + (f"  shift={shift:.2e}" if shift else ""), flush=True)
+            print(f"    t={t:.4f} it={it:2d}  E={E: .10e}  |g|={gnorm:.3e}  "
+                  + (f"|p|={info['norm_M']:.2e} r={radius:.1e}" if trust else f"step={alpha:.3g}")
+                  + ("" if accepted else " rejected")
+                  + (f"  neg={negative}" if negative else "")
+                  + (f"  cg={info['iterations']}" if info["iterations"] > 1 else ""), flush=True)
+    return None
+
+
+def _trust_trial(problem, x, p, E, gnorm, predicted, noise):
+    """Evaluate the trust-region step: (accepted, new energy or None, 1.0)."""
+    xn = x + p
+    try:
+        En, _, _ = problem.evaluate(xn, 0)
+    except EvaluationError:
+        return False, None, 1.0
+    if not np.isfinite(En):
+        return False, None, 1.0
+    if predicted > 0 and E - En >= 0.1 * predicted:
+        return True, En, 1.0
+    # near the solution the energy test drowns in round-off: accept steps
+    # that reduce the gradient instead
+    if abs(En - E) <= noise:
+        _, gn, _ = problem.evaluate(xn, 1)
+        if np.linalg.norm(gn) < gnorm:
+            return True, None, 1.0
+    return False, En, 1.0
+
+
+def _line_search(problem, x, p, E, gnorm, slope, opts, noise):
+    """Armijo backtracking; an inadmissible trial state counts as +inf."""
+    alpha = 1.0
+    while alpha >= opts.min_alpha:
+        xn = x + alpha * p
+        try:
+            En, _, _ = problem.evaluate(xn, 0)
+            ok = np.isfinite(En) and En <= E + opts.armijo * alpha * slope
+            if not ok and alpha == 1.0 and abs(En - E) <= noise:
+                _, gn, _ = problem.evaluate(xn, 1)
+                ok = np.linalg.norm(gn) < gnorm
+        except EvaluationError:
+            ok = False
+        if ok:
+            return True, alpha
+        alpha *= 0.5
+    return False, alpha
+
+
+# ------------------------------------------------------------------ stability
+def lowest_eigenpairs(lin, K, count):
+    """The ``count`` algebraically smallest eigenpairs of K (lower CSR) by
+    LOBPCG, preconditioned by the solver's SPD preconditioner (the last
+    positive definite factorization, or AMG)."""
+    n = K.shape[0]
+    count = max(1, min(count, n - 1))
+    matvec = lower_matvec(K)
+    A = spla.LinearOperator((n, n), matvec=matvec, matmat=matvec, dtype=np.float64)
+    prec = lin.preconditioner(K)
+    M = spla.LinearOperator((n, n), matvec=prec, matmat=prec, dtype=np.float64)
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((n, count + 2))
+    # the free rigid motions (zero eigenvalues) are excluded
+    w, V = spla.lobpcg(A, X, M=M, Y=lin.rigid, largest=False, tol=1e-8, maxiter=200)
+    order = np.argsort(w)
+    return w[order][:count], V[:, order][:, :count]
+
+
+def assess_stability(problem, K, opts, history, lin, t):
+    """Inertia (and eigenpairs on request) of the Hessian K at a converged
+    state.  Returns the most unstable mode (or None)."""
+    mode = opts.stability
+    if mode == "auto":
+        mode = "inertia" if lin.direct or lin.solver is None else "off"
+    if mode == "off" or K.shape[0] == 0:
+        history.stable, history.unstable_modes = None, None
+        return None
+    if lin.solver is None or lin.direct:
+        negative, _ = lin.factorize(K)
+    else:
+        negative = None
+    vec = None
+    if mode == "eigen" or negative is None or (negative and opts.escape):
+        count = 3 if negative is None else max(negative, 1) + 1
+        w, V = lowest_eigenpairs(lin, K, min(count, 12))
+        history.lowest_eigenvalues = [float(v) for v in w]
+        # pivots of exact null modes (a free rigid motion) come out with
+        # either sign: count an eigenvalue as negative only above round-off
+        zero = 1e-12 * max(np.abs(K.diagonal()).max(), 1e-300)
+        really = int(np.count_nonzero(w < -zero))
+        if negative is None or really < min(count, 12):
+            negative = really
+        if negative and w[0] < -zero:
+            vec = V[:, 0]
+    history.stable = negative == 0
+    history.unstable_modes = negative
+    return vec
+
+
+def escape_along(problem, mode, t, opts, history):
+    """Leave an unstable equilibrium along ``mode``: the amplitude (a
+    fraction of the problem size, both signs tried) is halved until the
+    energy decreases.  Returns True when a lower-energy state was found."""
+    x = problem.free_state()
+    E, _, _ = problem.evaluate(x, 0)
+    v = mode / max(np.abs(mode).max(), 1e-300)
+    amp = 1e-2 * problem.size_scale()
+    saved = problem.save_point()
+    while amp > 1e-9 * problem.size_scale():
+        best = None
+        for sign in (1.0, -1.0):
+            try:
+                En, _, _ = problem.evaluate(x + sign * amp * v, 0)
+            except EvaluationError:
+                problem.restore_point(saved)
+                continue
+            if En < E - 1e-12 * max(problem.energy_magnitude(), abs(E)) and (best is None or En < best[0]):
+                best = (En, sign)
+        if best is not None:
+            problem.set_free_state(x + best[1] * amp * v)
+            history.escapes.append(dict(t=float(t), negative=history.unstable_modes,
+                                        eigenvalue=(history.lowest_eigenvalues or [None])[0],
+                                        amplitude=float(amp), energy_drop=float(E - best[0])))
+            if opts.verbose:
+                print(f"    t={t:.4f}: unstable equilibrium ({history.unstable_modes} negative "
+                      f"eigenvalues): perturbed along the lowest mode (amplitude {amp:.2e})", flush=True)
+            return True
+        amp *= 0.5
+    problem.restore_point(saved)
     return False
 
 
+def equilibrium(problem, t, opts, history, g_ref, lin):
+    """Minimize at t; assess stability; leave unstable states (opts.escape)."""
+    for _ in range(opts.max_escapes + 1):
+        K = minimize(problem, t, opts, history, g_ref, lin)
+        if K is None:
+            return False
+        mode = assess_stability(problem, K, opts, history, lin, t)
+        if mode is None or not opts.escape:
+            return True
+        if not escape_along(problem, mode, t, opts, history):
+            history.notes.append(f"t={t:.4g}: unstable equilibrium, no lower state found along its mode")
+            return True
+    history.notes.append(f"t={t:.4g}: still unstable after {opts.max_escapes} escapes")
+    return True
+
+
+# --------------------------------------------------------------- continuation
 def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0):
-    """Follow the equilibrium from t_start to 1 in (adaptive) steps."""
-    opts = opts or NewtonOptions()
+    """Follow the equilibrium from t_start to 1: adaptive steps in t
+    (opts.path == "load") or arc length (opts.path == "arclength")."""
+    opts = opts or SolverOptions()
     history = SolveHistory()
+    lin = _Linear(problem, opts, history)
     t = t_start
-    dt = (1.0 - t_start) / max(1, steps)
     problem.set_parameter(t)
     g_ref = problem.load_scale()
-    if not newton(problem, t, opts, history, g_ref):
+    if not equilibrium(problem, t, opts, history, g_ref, lin):
         raise SolveError(f"no equilibrium at the start t={t}", last_t=None, history=history)
     history.steps.append((t, True))
+    if opts.path == "arclength":
+        return _arclength(problem, steps, opts, history, lin, g_ref, t, min_dt)
+    dt = (1.0 - t_start) / max(1, steps)
     prev = None          # (t, free state) of the previous converged step: secant predictor
     while t < 1.0 - 1e-14:
         dt = min(dt, 1.0 - t)
@@ -244,19 +524,178 @@ def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0):
             problem.set_free_state(x_now + (dt / (t - prev[0])) * (x_now - prev[1]))
         if opts.verbose:
             print(f"  step t = {t_new:.4f} (dt = {dt:.4f})", flush=True)
-        ok = newton(problem, t_new, opts, history, max(g_ref, problem.load_scale()))
+        n_before = len(history.iterations)
+        ok = equilibrium(problem, t_new, opts, history, max(g_ref, problem.load_scale()), lin)
         history.steps.append((t_new, ok))
         if ok:
             prev = (t, x_now)
             t = t_new
-            dt = min(2 * dt, 1.0 - t) if len(history.iterations) and history.iterations[-1].it < 6 else dt
+            if len(history.iterations) - n_before < 6:
+                dt = min(2 * dt, 1.0 - t)
         else:
-            problem.restore_point(saved)
-            problem.set_parameter(t)
-            dt *= 0.5
-            if opts.verbose:
-                print(f"  step failed: back to t = {t:.4f}, dt -> {dt:.4g}")
-            if dt < min_dt:
-                raise SolveError(f"continuation failed beyond t = {t:.6f} (step below {min_dt}); "
-                                 "the last converged state is kept", last_t=t, history=history)
+            dt = _step_back(problem, saved, t, dt, min_dt, opts, history, "step")
     return history
+
+
+def _step_back(problem, saved, t, step, min_step, opts, history, what):
+    """Back to the last converged state after a failed step; the halved step
+    (SolveError when it falls below min_step)."""
+    problem.restore_point(saved)
+    problem.set_parameter(t)
+    step *= 0.5
+    if opts.verbose:
+        print(f"  {what} failed: back to t = {t:.4f}, {what} -> {step:.4g}")
+    if step < min_step:
+        raise SolveError(f"continuation ({what}s) failed beyond t = {t:.6f} (step below {min_step}); "
+                         "the last converged state is kept", last_t=t, history=history)
+    return step
+
+
+def _parameter_derivative(problem, x, t, delta=1e-6):
+    """dg/dt at fixed free DOFs x by central differences in t (loads,
+    growth and prescribed motions all depend on t)."""
+    saved = problem.save_point()
+    problem.set_parameter(t + delta)
+    _, gp, _ = problem.evaluate(x, 1)
+    problem.set_parameter(t - delta)
+    _, gm, _ = problem.evaluate(x, 1)
+    problem.restore_point(saved)
+    problem.set_parameter(t)
+    return (gp - gm) / (2 * delta)
+
+
+def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
+    """Pseudo-arc-length continuation (Riks 1979: corrector in the plane
+    normal to the tangent) in (x, t) with the metric |dx|^2 / L^2 + dt^2,
+    L the problem size; bordered systems by two solves with one
+    factorization per corrector iteration.  Passes limit points of t; ends
+    at t = 1 by a Newton solve at fixed t from the secant between the path
+    points around it.  Equilibria on the way may be unstable (recorded)."""
+    L2 = problem.size_scale() ** 2
+    ds = opts.arc_ds or 1.0 / max(1, steps)
+    ds_max = opts.arc_max_ds or 4 * ds
+    x = problem.free_state()
+    tau_prev = None
+    for _ in range(opts.arc_max_steps):
+        # inertia and tangent at the converged point: K dx = -dg/dt, dt = 1, normalized
+        E, _, K = problem.evaluate(x, 2)
+        history.assemblies += 1
+        negative, _ = lin.factorize(K)
+        if not lin.direct:
+            raise SolveError("arc length needs a direct linear solver (linear='pardiso' or 'superlu')",
+                             last_t=t, history=history)
+        _record_path(problem, history, t, E, negative)
+        if opts.verbose and len(history.path) > 1:
+            print(f"  arc t = {t:.5f} (ds = {ds:.4g}, {negative} negative eigenvalues)", flush=True)
+        gt = _parameter_derivative(problem, x, t)
+        dx = lin.solver.solve(-gt)
+        norm = np.sqrt(dx @ dx / L2 + 1.0)
+        tau_x, tau_t = dx / norm, 1.0 / norm
+        if tau_prev is not None and (tau_x @ tau_prev[0] / L2 + tau_t * tau_prev[1]) < 0:
+            tau_x, tau_t = -tau_x, -tau_t          # keep the direction of travel
+        while True:
+            saved = problem.save_point()
+            ok, xn, tn, its = _riks_corrector(problem, x, t, tau_x, tau_t, ds, L2, opts, history,
+                                              lin, g_ref)
+            if ok:
+                break
+            ds = _step_back(problem, saved, t, ds, min_ds, opts, history, "arc step")
+        if tn >= 1.0 and t < 1.0:
+            # the path crosses t = 1: Newton at t = 1 from the secant point
+            s = (1.0 - t) / (tn - t)
+            problem.set_parameter(1.0)
+            problem.set_free_state(x + s * (xn - x))
+            if not equilibrium(problem, 1.0, opts, history, max(g_ref, problem.load_scale()), lin):
+                raise SolveError("arc length: no equilibrium at t = 1 near the path", last_t=t,
+                                 history=history)
+            history.steps.append((1.0, True))
+            E, _, _ = problem.evaluate(problem.free_state(), 0)
+            _record_path(problem, history, 1.0, E, history.unstable_modes)
+            return history
+        tau_prev = (tau_x, tau_t)
+        x, t = xn, tn
+        history.steps.append((t, True))
+        ds = min(ds * 1.5, ds_max) if its <= 4 else (ds * 0.7 if its > 8 else ds)
+    raise SolveError(f"arc length: t = 1 not reached in {opts.arc_max_steps} steps (t = {t:.6f})",
+                     last_t=t, history=history)
+
+
+def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g_ref):
+    """Newton on g(x, t) = 0 and the plane (x - xp).tau_x / L^2 + (t - tp) tau_t = 0
+    through the predictor (xp, tp) = (x0, t0) + ds tau."""
+    x = x0 + ds * tau_x
+    t = t0 + ds * tau_t
+    for it in range(opts.max_iter):
+        tic = time.perf_counter()
+        problem.set_parameter(t)
+        problem.set_free_state(x)
+        try:
+            E, g, K = problem.evaluate(x, 2)
+        except EvaluationError:
+            return False, x, t, it
+        history.assemblies += 1
+        gnorm = np.linalg.norm(g)
+        c = (x - x0) @ tau_x / L2 + (t - t0) * tau_t - ds
+        if gnorm <= opts.rtol * max(g_ref, problem.load_scale(), 1e-300) and abs(c) <= 1e-10 * ds:
+            return True, x, t, it
+        negative, setup = lin.factorize(K)
+        gt = _parameter_derivative(problem, x, t)
+        a = lin.solver.solve(-g)
+        b = lin.solver.solve(-gt)
+        dt = -(c + tau_x @ a / L2) / (tau_x @ b / L2 + tau_t)
+        x = x + a + dt * b
+        t = t + dt
+        history.iterations.append(Iteration(t, it, E, gnorm, float(np.abs(a + dt * b).max()), np.nan,
+                                            True, negative, 1, "bordered", lin.solver.name, setup,
+                                            0.0, time.perf_counter() - tic))
+        if not (np.all(np.isfinite(x)) and np.isfinite(t)):
+            return False, x0, t0, it
+    return False, x, t, opts.max_iter
+
+
+def _record_path(problem, history, t, E, negative):
+    """A path point at the current state (t, energy, inertia, monitored values)."""
+    point = dict(t=float(t), energy=float(E), negative=negative)
+    if hasattr(problem, "monitor"):
+        point["monitor"] = [float(v) for v in np.ravel(problem.monitor())]
+    history.path.append(point)
+
+
+class Solvable:
+    """The ``solve`` method shared by the engines.  An engine implements the
+    problem protocol above and ``_setup()``, ``_describe()`` (one line) and
+    ``_result(history, wall_s, converged, t)``."""
+
+    def solve(self, steps=1, verbose=True, rtol=1e-9, max_iter=40, min_dt=1e-4, linear="auto",
+              globalization="trust-region", path="load", stability="auto", escape=True,
+              monitor=None):
+        """Equilibrium at t = 1 by continuation from the reference (t = 0).
+
+        steps: initial number of continuation steps (adapted: halved on
+        failure, doubled after easy steps; arc length: the first arc step is
+        1/steps in t); rtol: relative gradient tolerance; max_iter: Newton
+        iterations per step; min_dt: smallest step before giving up.
+        linear: "auto" | "pardiso" | "superlu" | "amg" (linalg.py);
+        globalization: "trust-region" | "line-search";
+        path: "load" | "arclength" (passes limit points; the path is in
+        ``result.history.path``, ``history.write_path(csv)``);
+        stability: "auto" | "inertia" | "eigen" | "off" (see SolverOptions);
+        escape: leave unstable equilibria along their most unstable mode;
+        monitor: node indices whose positions are recorded along an
+        arc-length path.
+        Raises SolveError (with ``.result``, the last converged state) on failure.
+        """
+        opts = SolverOptions(rtol=rtol, max_iter=max_iter, verbose=verbose, linear=linear,
+                             globalization=globalization, path=path, stability=stability,
+                             escape=escape)
+        self._setup()
+        self._monitor_nodes = None if monitor is None else np.atleast_1d(np.asarray(monitor, int))
+        t0 = time.perf_counter()
+        if verbose:
+            print(self._describe(), flush=True)
+        try:
+            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt)
+        except SolveError as exc:
+            exc.result = self._result(exc.history, time.perf_counter() - t0, False, exc.last_t)
+            raise
+        return self._result(history, time.perf_counter() - t0, True, 1.0)

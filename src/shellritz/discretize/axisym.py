@@ -32,6 +32,12 @@ class AxisymmetricShell(LineShell):
         for i in self.poles:
             self._fix(i, [0, 3])          # r = 0, z' = 0: smooth through the axis
 
+    def _rigid_modes(self, U):
+        """The one rigid motion of a shell of revolution: translation along z."""
+        B = np.zeros((len(U), 4, 1))
+        B[:, 2, 0] = 1.0
+        return B.reshape(-1, 1)
+
     def _kinematics(self, kin):
         K = np.zeros((15, 6))
         c = np.zeros(15)

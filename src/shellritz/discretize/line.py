@@ -11,7 +11,6 @@ reference state is exactly stress free.  The same point kernel, levels,
 Newton-continuation solver and sparse LDL^T solves as the triangle engine.
 """
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +20,7 @@ from ..kernels.line_assembly import assemble_line
 from ..kernels.point import STATUS_TEXT, _reference_geometry
 from ..materials import Law
 from ..model import check_thickness, level_id
-from ..solve import EvaluationError, NewtonOptions, SolveError, continuation
+from ..solve import EvaluationError, Solvable
 
 GAUSS_POINTS = 5
 
@@ -38,7 +37,7 @@ def hermite(xi, ell):
     return H, dH, ddH
 
 
-class LineShell:
+class LineShell(Solvable):
     """Base class; subclasses define the kinematic map (see _kinematics)."""
 
     azimuthal = False          # True: the second coordinate is an azimuth (rotation about z)
@@ -442,19 +441,23 @@ class LineShell:
         """Enclosed volume and its derivatives (per point, element DOFs)."""
         raise NotImplementedError
 
-    def solve(self, steps=1, verbose=True, rtol=1e-9, max_iter=40, min_dt=1e-4):
-        self._setup()
-        t0 = time.perf_counter()
-        opts = NewtonOptions(rtol=rtol, max_iter=max_iter, verbose=verbose)
-        if verbose:
-            print(f"shellritz: {type(self).__name__}, {self.n_elements} elements, "
-                  f"{len(self.free)} free DOFs, level {self.level}", flush=True)
-        try:
-            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt)
-        except SolveError as exc:
-            exc.result = LineResult(self, exc.history, time.perf_counter() - t0, False, exc.last_t)
-            raise
-        return LineResult(self, history, time.perf_counter() - t0, True, 1.0)
+    def block_layout(self):
+        """Nodal blocks (a, a', b, b') and the rigid motions of the curve
+        (``_rigid_modes``), for the solver (linalg.free_rigid_modes)."""
+        n = self.n_nodes
+        return 4, self.free, 4 * n, lambda: self._rigid_modes(self.U.reshape(n, 4))
+
+    def monitor(self):
+        """(a, b) of the monitored nodes (solve(monitor=...))."""
+        nodes = getattr(self, "_monitor_nodes", None)
+        return self.U.reshape(-1, 4)[nodes][:, [0, 2]] if nodes is not None else np.zeros(0)
+
+    def _describe(self):
+        return (f"shellritz: {type(self).__name__}, {self.n_elements} elements, "
+                f"{len(self.free)} free DOFs, level {self.level}")
+
+    def _result(self, history, wall_s, converged, t):
+        return LineResult(self, history, wall_s, converged, t)
 
 
 @dataclass

@@ -30,6 +30,15 @@ class PlaneStrainShell(LineShell):
         self.stretch = float(stretch)
         super().__init__(s, curve, thickness, material, level, closed=closed)
 
+    def _rigid_modes(self, U):
+        """Translations along x and z, rotation about y: (x, z) -> (z, -x)
+        (slopes turn alike), in the nodal DOFs (x, x', z, z')."""
+        B = np.zeros((len(U), 4, 3))
+        B[:, 0, 0] = 1.0
+        B[:, 2, 1] = 1.0
+        B[:, [0, 1, 2, 3], 2] = np.c_[U[:, 2], U[:, 3], -U[:, 0], -U[:, 1]]
+        return B.reshape(-1, 3)
+
     def _kinematics(self, kin):
         K = np.zeros((15, 6))
         c = np.zeros(15)

@@ -1,0 +1,493 @@
+"""Linear algebra of the Newton steps: one interface, several methods.
+
+A Newton step of solve.py needs, for the Hessian K of the free DOFs (given as
+its lower triangle, CSR, with a sparsity pattern fixed per mesh):
+
+* a preconditioner ``M^-1`` that is symmetric positive definite, for the
+  Steihaug-Toint conjugate gradients of the trust-region step and the
+  truncated Newton-CG direction of the line search (:func:`steihaug_cg`);
+  for a direct method and a positive definite K it is ``K^-1`` itself (one
+  CG iteration gives the exact Newton step);
+* the inertia of K (its number of negative eigenvalues) where the method can
+  tell: that decides stability, and whether K itself can precondition;
+* solves with K itself (indefinite allowed) for the bordered systems of arc
+  length continuation and the tangent predictor.
+
+Methods (``method=`` of :func:`make_linear_solver`):
+
+``"pardiso"``  Intel MKL PARDISO (package pypardiso, x86-64): symmetric
+    indefinite LDL^T with Bunch-Kaufman pivoting, METIS ordering and symbolic
+    analysis once per sparsity pattern, only the numeric factorization per
+    Newton step; the inertia is reported by the factorization.
+``"superlu"``  SciPy's SuperLU in symmetric mode (diagonal pivots, minimum
+    degree ordering of A^T + A redone at every factorization); inertia from the
+    pivot signs.  Slower (no reuse of the analysis), always available.
+``"amg"``  pyamg smoothed aggregation on the 9 x 9 nodal blocks with the six
+    rigid-body modes (positions and tangent derivatives) as near null space,
+    as the preconditioner of the conjugate gradients; the hierarchy is kept
+    across Newton steps and rebuilt when the Krylov iterations grow.  No
+    inertia (stability by LOBPCG on request).
+``"auto"``  ``"pardiso"`` where installed, else ``"superlu"``, up to
+    :data:`AUTO_DIRECT_MAX_DOFS` free DOFs, ``"amg"`` above (measured
+    crossover: bench/scaling.py, README "Solver").
+"""
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+METHODS = ("auto", "pardiso", "superlu", "amg")
+
+# Above this many free DOFs "auto" prefers AMG to a factorization (memory:
+# the PARDISO factor of the leaf Hessian takes about 1.2 KB per DOF at 56k
+# DOFs and grows like n log n; see README "Solver").
+AUTO_DIRECT_MAX_DOFS = 600_000
+
+
+class LinearSolverError(RuntimeError):
+    """A linear solve could not be done (message says which method and why)."""
+
+
+def pardiso_available():
+    try:
+        import pypardiso  # noqa: F401
+    except (ImportError, OSError):
+        return False
+    return True
+
+
+def resolve_method(method, n_dofs, has_blocks=True):
+    """The concrete method for ``method`` (checks the name and availability)."""
+    if method not in METHODS:
+        raise ValueError(f"unknown linear solver {method!r}: choose one of {', '.join(METHODS)}")
+    if method == "auto":
+        if n_dofs > AUTO_DIRECT_MAX_DOFS and has_blocks:
+            return "amg"
+        return "pardiso" if pardiso_available() else "superlu"
+    if method == "pardiso" and not pardiso_available():
+        raise LinearSolverError("linear solver 'pardiso' needs the package pypardiso (Intel MKL, "
+                                "x86-64 only: pip install pypardiso); available here: superlu, amg")
+    if method == "amg" and not has_blocks:
+        raise LinearSolverError("linear solver 'amg' needs the nodal block structure of the triangle "
+                                "engine; use 'pardiso' or 'superlu' for this problem")
+    return method
+
+
+def symmetric_from_lower(K):
+    """The full symmetric matrix (CSR) of its lower triangle K (CSR)."""
+    return (K + sp.tril(K, -1).T).tocsr()
+
+
+# --------------------------------------------------------------------- direct
+class _PardisoFactor:
+    """One PARDISO handle: analysis once for the pattern, numeric
+    factorizations of matrices with that pattern, solves."""
+
+    def __init__(self, upper_pattern):
+        import os
+        import pypardiso
+        self._ps = ps = pypardiso.PyPardisoSolver(mtype=-2)     # real symmetric indefinite
+        # pypardiso looks for MKL by a recursive search of the environment
+        # (1 s here) unless told where it is: tell it for the next handles
+        os.environ.setdefault("PYPARDISO_MKL_RT", ps.libmkl._name)
+        ps.set_iparm(1, 1)         # use the iparm values below, not the defaults
+        ps.set_iparm(2, 2)         # METIS nested dissection ordering
+        ps.set_iparm(10, 13)       # pivot perturbation 1e-13 (1e-8 by default: inaccurate solves
+        #                            of indefinite leaf Hessians, 7e-2 residuals measured)
+        ps.set_iparm(21, 1)        # Bunch-Kaufman 1x1 and 2x2 pivots
+        ps.set_iparm(24, 1)        # two-level parallel factorization
+        self._A = upper_pattern
+        self._analysed = False
+        self.negative = None
+        self.perturbed = 0
+
+    def _call(self, phase, b):
+        self._ps.set_phase(phase)
+        return self._ps._call_pardiso(self._A, b)      # pypardiso's documented low-level call
+
+    def factorize(self, data):
+        import pypardiso
+        self._A.data = data
+        zero = np.zeros((self._A.shape[0], 1))
+        try:
+            self._call(22 if self._analysed else 12, zero)
+        except pypardiso.pardiso_wrapper.PyPardisoError as exc:
+            self.negative = None
+            raise LinearSolverError(f"PARDISO factorization failed ({exc})") from exc
+        self._analysed = True
+        self.negative = int(self._ps.get_iparm(23))
+        self.perturbed = int(self._ps.get_iparm(14))
+        # perturbed pivots: two steps of iterative refinement in the solves
+        self._ps.set_iparm(8, 2 if self.perturbed else 0)
+
+    def solve(self, b):
+        b = np.asarray(b, dtype=np.float64)
+        return self._call(33, b.reshape(-1, 1) if b.ndim == 1 else np.asfortranarray(b)).reshape(b.shape)
+
+    def release(self):
+        self._ps.free_memory(everything=True)
+
+
+class _SuperLUFactor:
+    def __init__(self):
+        self._lu = None
+        self.negative = None
+        self.perturbed = 0
+
+    def factorize(self, A):
+        """A: full symmetric CSC.  SuperLU in symmetric mode with diagonal
+        pivots computes A = P^T L U P with U = D L^T, so the signs of diag(U)
+        are the inertia (Sylvester)."""
+        try:
+            lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=dict(SymmetricMode=True))
+        except RuntimeError as exc:            # an exactly zero pivot: singular
+            self._lu, self.negative = None, None
+            raise LinearSolverError(f"SuperLU: singular matrix ({exc})") from exc
+        if not np.array_equal(lu.perm_r, lu.perm_c):
+            self._lu, self.negative = None, None
+            raise LinearSolverError("SuperLU left the diagonal while pivoting: no inertia")
+        self._lu = lu
+        self.negative = int(np.count_nonzero(~(lu.U.diagonal() > 0.0)))
+
+    def solve(self, b):
+        return self._lu.solve(np.asarray(b, dtype=np.float64))
+
+    def release(self):
+        self._lu = None
+
+
+# Where the problem has free rigid motions (an exactly singular Hessian), the
+# factorized matrix is K + REGULARIZATION * max|diag K| * I: the null modes
+# would otherwise be amplified without bound by the preconditioner (the
+# conjugate gradients, which run on K itself in the complement of the rigid
+# motions, remove the effect of the shift in a few iterations).
+REGULARIZATION = 1e-10
+
+
+class DirectSolver:
+    """Sparse LDL^T factorizations of the Hessians of one sparsity pattern.
+
+    Two factor slots: the current Hessian's, and the last positive definite
+    one, which preconditions the conjugate gradients when the current Hessian
+    is indefinite (a nearby positive definite Hessian: CG then needs few
+    iterations to find the negative curvature and the trust-region step,
+    with one factorization per Newton step).
+    """
+
+    direct = True
+
+    def __init__(self, method, n, indptr, indices, regularize=False):
+        self.name = method
+        self.regularize = regularize
+        self.n = n
+        self._lower = sp.csr_matrix((np.zeros(len(indices)), indices, indptr), shape=(n, n))
+        if method == "pardiso":
+            # PARDISO takes the upper triangle by rows = the lower triangle by
+            # columns: one fixed permutation of the entries, found once
+            probe = sp.csr_matrix((np.arange(len(indices), dtype=np.float64), indices, indptr),
+                                  shape=(n, n)).T.tocsr()
+            probe.sort_indices()
+            self._to_upper = probe.data.astype(np.int64)
+            self._pattern = probe
+            self._slots = [_PardisoFactor(self._upper(np.zeros(len(indices)))) for _ in range(2)]
+        else:
+            self._slots = [_SuperLUFactor(), _SuperLUFactor()]
+        self._current = None      # slot of the current Hessian
+        self._pd = None           # slot of the last positive definite Hessian
+        self.K = None
+        rows = np.repeat(np.arange(n), np.diff(indptr))
+        self._diag = np.where(rows == indices)[0]
+        if len(self._diag) != n:
+            raise LinearSolverError("the Hessian pattern lacks diagonal entries")
+
+    def _upper(self, data):
+        A = self._pattern.copy()
+        A.data = data[self._to_upper]
+        return A
+
+    def factorize(self, K):
+        """Numeric factorization of K (lower CSR, this pattern).  Returns the
+        number of negative eigenvalues (None: singular / unknown)."""
+        self.K = K
+        free = [i for i in (0, 1) if i != self._pd]
+        slot = free[0]
+        f = self._slots[slot]
+        data = self._regularized(K)
+        if self.name == "pardiso":
+            f.factorize(data[self._to_upper])
+        else:
+            Kr = sp.csr_matrix((data, K.indices, K.indptr), shape=K.shape)
+            f.factorize(symmetric_from_lower(Kr).tocsc())
+        self._current = slot
+        if f.negative == 0:
+            self._pd = slot
+        return f.negative
+
+    def _regularized(self, K):
+        if not self.regularize:
+            return K.data
+        data = K.data.copy()
+        data[self._diag] += REGULARIZATION * np.abs(data[self._diag]).max(initial=0.0)
+        return data
+
+    @property
+    def negative(self):
+        return None if self._current is None else self._slots[self._current].negative
+
+    def solve(self, b):
+        """K^-1 b with the current (possibly indefinite) factorization (if
+        regularized: one step of iterative refinement against K, so the error
+        falls from the regularization to its square)."""
+        f = self._slots[self._current]
+        x = f.solve(b)
+        return x + f.solve(b - lower_matvec(self.K)(x)) if self.regularize else x
+
+    def preconditioner(self):
+        """M^-1 (SPD): the current factorization if K is positive definite,
+        else the last positive definite one, else None (no SPD factor yet)."""
+        if self._pd is None:
+            return None
+        return self._slots[self._pd].solve
+
+    def current_is_positive_definite(self):
+        """The preconditioner is the factorization of the current Hessian."""
+        return self._pd is not None and self._pd == self._current
+
+    def forget_positive_definite(self):
+        """Drop the lagged factor (the pattern's state has changed a lot)."""
+        if self._pd is not None and self._pd != self._current:
+            self._pd = None
+
+    def release(self):
+        for s in self._slots:
+            s.release()
+
+
+# ------------------------------------------------------------------------ AMG
+class AMGSolver:
+    """pyamg smoothed aggregation as the CG preconditioner.
+
+    The free-DOF Hessian is embedded in the full nodal numbering (fixed DOFs
+    get an identity row scaled to the diagonal), so that it has 9 x 9 nodal
+    blocks; the near null space is the six rigid-body modes of the current
+    state (translations, and rotations acting on positions and tangent
+    derivatives).  The hierarchy is built on a positive definite Hessian and
+    reused while the Krylov iterations stay below ``rebuild_growth`` times
+    those right after a build.
+    """
+
+    direct = False
+    name = "amg"
+
+    def __init__(self, n, layout, rebuild_growth=2.0, options=None):
+        self.n = n
+        self.block, self.free_full, self.n_full, self.rigid_modes = layout
+        self.rebuild_growth = rebuild_growth
+        self.options = dict(options or {})
+        self._ml = None
+        self._its_at_build = None
+        self.K = None
+        self.negative = None
+        self.build_count = 0
+
+    def _embed(self, K):
+        A = symmetric_from_lower(K)
+        P = sp.csr_matrix((np.ones(self.n), (self.free_full, np.arange(self.n))),
+                          shape=(self.n_full, self.n))
+        fixed = np.ones(self.n_full, bool)
+        fixed[self.free_full] = False
+        d = np.abs(A.diagonal())
+        scale = np.median(d[d > 0]) if np.any(d > 0) else 1.0
+        full = (P @ A @ P.T + sp.diags(np.where(fixed, scale, 0.0))).tocsr()
+        return full
+
+    def factorize(self, K):
+        """Keep K; the hierarchy is built lazily (see ``note_iterations``)."""
+        self.K = K
+        if self._ml is None:
+            self._build(K)
+        return None
+
+    def _build(self, K):
+        import pyamg
+        A = self._embed(K).tobsr(blocksize=(self.block, self.block))
+        B = self.rigid_modes()
+        opts = dict(symmetry="symmetric",
+                    strength=("symmetric", {"theta": 0.0}),
+                    smooth=("energy", {"krylov": "cg", "maxiter": 4, "degree": 2, "weighting": "local"}),
+                    presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+                    postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+                    max_coarse=3000, coarse_solver="splu")
+        opts.update(self.options)
+        t0 = time.perf_counter()
+        self._ml = pyamg.smoothed_aggregation_solver(A, B=B, **opts)
+        self.build_seconds = time.perf_counter() - t0
+        self._its_at_build = None
+        self.build_count += 1
+
+    def note_iterations(self, its):
+        """Rebuild the hierarchy (on the current K) when CG slows down."""
+        if self._its_at_build is None:
+            self._its_at_build = max(its, 1)
+            return False
+        if its > self.rebuild_growth * self._its_at_build + 5:
+            self._build(self.K)
+            return True
+        return False
+
+    def preconditioner(self):
+        ml, free, nf = self._ml, self.free_full, self.n_full
+
+        def apply(r):
+            full = np.zeros(nf)
+            full[free] = r
+            return ml.solve(full, x0=np.zeros(nf), tol=1e-30, maxiter=1, cycle="V")[free]
+        return apply
+
+    def current_is_positive_definite(self):
+        return False
+
+    def forget_positive_definite(self):
+        pass
+
+    def release(self):
+        self._ml = None
+
+
+def make_linear_solver(method, n, indptr, indices, layout=None, singular=False):
+    """The linear solver for a Hessian pattern (lower CSR of n free DOFs).
+    ``layout``: (block size, free DOFs in the full numbering, number of full
+    DOFs, callable -> rigid modes (n_full, 6)) for AMG; ``singular``: the
+    problem has free rigid motions (regularized factorizations)."""
+    method = resolve_method(method, n, has_blocks=layout is not None)
+    if method == "amg":
+        return AMGSolver(n, layout)
+    return DirectSolver(method, n, indptr, indices, regularize=singular)
+
+
+# -------------------------------------------------------------- Krylov: CG
+def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, project=None):
+    """Approximate minimizer of the model m(p) = g.p + p.K p / 2 with
+    ||p||_M <= radius by preconditioned conjugate gradients (Steihaug 1983,
+    Toint 1981; Conn, Gould & Toint, Trust-Region Methods, alg. 7.5.1, with
+    their recurrences for the M-norms, so M itself is never applied).
+
+    matvec: p -> K p; precond: r -> M^-1 r (symmetric positive definite);
+    project: the orthogonal projector onto the complement of the free rigid
+    motions (None: there are none), applied to the preconditioned residuals,
+    so the iterates never move the body rigidly (a free rigid rotation of a
+    stressed state away from equilibrium has curvature of either sign, which
+    the iteration would otherwise follow).
+    Stops when ||K p + g|| <= rtol ||g||, on the boundary, or on negative
+    curvature.  With radius = inf (truncated Newton for a line search) a
+    negative curvature direction met in the first iteration is returned as is
+    (-M^-1 g: a descent direction), later ones end the iteration.
+
+    Returns (p, info) with info = dict(iterations, reason in {"converged",
+    "boundary", "negative curvature", "maxiter"}, norm_M (of p),
+    curvature (d.Kd / d.Md at a negative-curvature exit, else None)).
+    """
+    n = len(g)
+    p = np.zeros(n)
+    r = -np.asarray(g, dtype=np.float64)
+    gnorm = np.linalg.norm(r)
+    if gnorm == 0.0:
+        return p, dict(iterations=0, reason="converged", norm_M=0.0, curvature=None)
+    P = project or (lambda v: v)
+    z = P(precond(P(r)))
+    rz = r @ z
+    if not rz > 0.0:
+        raise LinearSolverError(f"preconditioner not positive definite (r.M^-1 r = {rz:.3e})")
+    d = z.copy()
+    pMp, pMd, dMd = 0.0, 0.0, rz
+    for it in range(1, maxiter + 1):
+        Kd = matvec(d)
+        dKd = d @ Kd
+        if dKd <= 0.0:
+            if np.isfinite(radius):
+                p += _to_boundary(pMp, pMd, dMd, radius) * d
+                return p, dict(iterations=it, reason="negative curvature", norm_M=radius,
+                               curvature=dKd / dMd)
+            if it == 1:
+                return d, dict(iterations=it, reason="negative curvature", norm_M=np.sqrt(dMd),
+                               curvature=dKd / dMd)
+            return p, dict(iterations=it, reason="negative curvature", norm_M=np.sqrt(pMp),
+                           curvature=dKd / dMd)
+        alpha = rz / dKd
+        if pMp + 2 * alpha * pMd + alpha * alpha * dMd >= radius * radius:
+            p += _to_boundary(pMp, pMd, dMd, radius) * d
+            return p, dict(iterations=it, reason="boundary", norm_M=radius, curvature=None)
+        p += alpha * d
+        r -= alpha * Kd
+        pMp += 2 * alpha * pMd + alpha * alpha * dMd
+        if np.linalg.norm(r) <= rtol * gnorm:
+            return p, dict(iterations=it, reason="converged", norm_M=np.sqrt(max(pMp, 0.0)),
+                           curvature=None)
+        z = P(precond(P(r)))
+        rz_new = r @ z
+        if not rz_new > 0.0 and np.linalg.norm(r) <= 1e-6 * gnorm:
+            # r.M^-1 r lost to round-off (r nearly in the numerical null
+            # space of a regularized factor): converged as far as it can
+            return p, dict(iterations=it, reason="converged", norm_M=np.sqrt(max(pMp, 0.0)),
+                           curvature=None)
+        if not rz_new > 0.0:
+            raise LinearSolverError(f"preconditioner not positive definite (r.M^-1 r = {rz_new:.3e})")
+        beta = rz_new / rz
+        rz = rz_new
+        pMd = beta * (pMd + alpha * dMd)
+        dMd = rz + beta * beta * dMd
+        d = z + beta * d
+    return p, dict(iterations=maxiter, reason="maxiter", norm_M=np.sqrt(max(pMp, 0.0)), curvature=None)
+
+
+def _to_boundary(pMp, pMd, dMd, radius):
+    """tau >= 0 with ||p + tau d||_M = radius."""
+    disc = pMd * pMd + dMd * (radius * radius - pMp)
+    return (-pMd + np.sqrt(max(disc, 0.0))) / dMd
+
+
+def jacobi(K):
+    """A diagonal SPD preconditioner from |diag K| (the last resort)."""
+    d = np.abs(K.diagonal())
+    d = np.where(d > 0, d, max(d.max(initial=0.0), 1.0))
+    inv = 1.0 / d
+    return lambda r: (inv * r.T).T
+
+
+def lower_matvec(K):
+    """p -> K p for the symmetric K given by its lower triangle (CSR); p may
+    be a block of vectors (n, k)."""
+    KT = K.T.tocsr()
+    diag = K.diagonal()
+    return lambda p: K @ p + KT @ p - (diag * p.T).T
+
+
+def free_rigid_modes(layout):
+    """An orthonormal basis (free DOFs, columns) of the rigid motions that
+    the fixed DOFs leave free (None if none are): the rigid modes of the
+    layout, combined so that they vanish on every fixed DOF."""
+    if layout is None:
+        return None
+    _, free, n_full, rigid_modes = layout
+    B = rigid_modes()
+    fixed = np.ones(n_full, bool)
+    fixed[free] = False
+    Bf = B[fixed]
+    # combinations N with Bf N = 0: the null space of the 6 x 6 Gram matrix
+    # (relative 1e-12 in the squares: singular values below 1e-6 of the largest)
+    w, V = np.linalg.eigh(Bf.T @ Bf)
+    N = V[:, w <= 1e-12 * max(w.max(), 0.0)] if len(Bf) else np.eye(B.shape[1])
+    if N.shape[1] == 0:
+        return None
+    Q, _ = np.linalg.qr(B[free] @ N)
+    return Q
+
+
+def projector(Q):
+    """v -> v minus its part in span(Q) (Q orthonormal; None: identity)."""
+    if Q is None:
+        return None
+    return lambda v: v - Q @ (Q.T @ v)
