@@ -17,7 +17,7 @@ is (z1 - 1) Z e_z exactly (Q2 contains it).
   solution of the block (``exact_onset``, the separable modes of Hill &
   Hutchinson 1975: u_x = U(Z) sin(pi X / l), u_z = V(Z) cos(pi X / l)).
 * post-bifurcation: the path of the block with a thickness imperfection
-  (growth G = diag(1, 1, 1 - delta cos(pi X / l)), thinnest at X = l, the
+  (growth G = diag(1, 1, 1 - delta cos(pi X / l)), thinnest at X = 0, the
   same field as the shell engine's ``set_stretch_growth``) by pseudo-arclength
   continuation (``follow``; displacement control stops at the fold where the
   necking snaps back), Newton with line search of bench/fe3d.py for the
@@ -291,7 +291,7 @@ def _path_row(block, U, its):
             "ellipticity": _in_plane_ellipticity(block, U), "x": x.tolist(), "thickness": t.tolist()}
 
 
-def follow(law, h, length, nx, nz, imperfection, lam_end, ds=0.01, ds_max=0.01, max_steps=200,
+def follow(law, h, length, nx, nz, imperfection, lam_end, ds=0.004, ds_max=0.004, max_steps=300,
            t_stop=0.4, verbose=False):
     """Equilibrium path of the imperfect block from lam = 1 by pseudo-arclength
     continuation in (unknown, lam), so that it passes the folds where the end
@@ -390,6 +390,26 @@ def main():
     print("path:", stop)
     name = "necking_2d_path_quick" if quick else "necking_2d_path"
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=1))
+    chart(out, RESULTS / f"{name}.png")
+
+
+def chart(out, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rows, h = out["rows"], out["h"]
+    lam = [r["lam"] for r in rows]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(9, 3.6))
+    ax.plot(lam, [r["force"] / h for r in rows], ".-")
+    ax.set_xlabel("end stretch")
+    ax.set_ylabel("N / (h mu)")
+    bx.plot(lam, [r["t_min"] / h for r in rows], ".-")
+    bx.set_xlabel("end stretch")
+    bx.set_ylabel("thinnest section / h")
+    fig.suptitle(f"2D solid, h/l = {h}, imperfection {out['imperfection']:g}: {out['stop']}",
+                 fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
 
 
 if __name__ == "__main__":

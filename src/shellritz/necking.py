@@ -43,7 +43,8 @@ __all__ = ["PlaneStrainTension", "plane_strain_tension", "e1d_energy", "consider
 def default_law():
     """The material of the necking studies: shear modulus 1, Poisson ratio
     0.3, hardening exponent 0.2 beyond a yield strain 0.02 (Considere at a
-    plane-strain stretch of about 1.23)."""
+    plane-strain stretch of 1.2422; strongly elliptic in plane-strain tension
+    up to 1.60)."""
     return PowerLawHardening(mu=1.0, n=0.2, eps0=0.02, nu=0.3)
 
 
@@ -64,7 +65,7 @@ class PlaneStrainTension:
         return self.w1 * self.p ** 2 / self.lam
 
 
-def plane_strain_tension(law, lam, z1_guess=None, tol=1e-15):
+def plane_strain_tension(law, lam, z1_guess=None, tol=2e-15):
     """Solve W_3(lam, 1, z1) = 0 for z1 by Newton (law.evaluate; A =
     diag(lam, 1, z1), axes X, Y (out of plane), Z) and return the state."""
     if not isinstance(law, Law):
@@ -97,8 +98,12 @@ def e1d_energy(law, h, dx0, ddx0, weights, N=0.0):
 
 
 def considere_stretch(law, bracket=(1.0005, 3.0)):
-    """Stretch of the maximum nominal stress, w''(lam) = 0."""
-    return brentq(lambda lam: plane_strain_tension(law, lam).w2, *bracket, xtol=1e-14)
+    """Stretch of the maximum nominal stress, w''(lam) = 0, in bracket."""
+    f = lambda lam: plane_strain_tension(law, lam).w2
+    if not (f(bracket[0]) > 0 > f(bracket[1])):
+        raise ValueError(f"considere_stretch: the plane-strain nominal stress of {law!r} has no "
+                         f"maximum between the stretches {bracket[0]:g} and {bracket[1]:g}")
+    return brentq(f, *bracket, xtol=1e-14)
 
 
 def onset_stretch(law, h_over_l, mode=1, bracket=None):
@@ -112,24 +117,36 @@ def onset_stretch(law, h_over_l, mode=1, bracket=None):
         return st.w2 + k2 * st.C
     lo = considere_stretch(law)
     if bracket is None:
-        hi = lo
+        hi = lo + 0.01
         while f(hi) >= 0:
-            hi = lo + 2 * (hi - lo) + 0.01
+            hi = lo + 2 * (hi - lo)
+            if hi > 10.0:
+                raise ValueError(f"onset_stretch: no onset below a stretch of 10 for h/l = {h_over_l:g}")
         bracket = (lo, hi)
     return brentq(f, *bracket, xtol=1e-14)
 
 
 # ---------------------------------------------------------------- engine side
 
-def necking_strip(law, h, length, n, stretch, level="consistent", imperfection=0.0):
+def necking_strip(law, h, length, n, stretch, level="consistent", imperfection=0.0,
+                  symmetric=False):
     """Plane-strain engine for the block: a strip along X in [0, length]
     with n elements, ends at a = 0 and a = stretch * length at t = 1 (ramped
     from the reference), b = 0 at both ends, slopes free (shear-free ends: the
     natural condition x0'' = 0).  imperfection: a thickness growth
-    gamma_n = 1 - imperfection cos(pi X / length), thinnest at X = length."""
+    gamma_n = 1 - imperfection cos(pi X / length), thinnest at X = 0.
+    symmetric: also b = b' = 0 at every node (the middle surface stays on
+    z = 0: the symmetric kinematics of E_1d).  This removes the antisymmetric
+    bending modes, whose stiffness turns negative past the force maximum at
+    wavelengths below the thickness (docs/necking.md, section 6): in a neck
+    stretched past the maximum they make the Hessian indefinite on meshes
+    finer than about h/2."""
     eng = PlaneStrainShell.strip(n, length, h, law, level)
     eng.fix_coordinate(0, "a").fix_coordinate(0, "b")
     eng.fix_coordinate(-1, "a", stretch * length).fix_coordinate(-1, "b")
+    if symmetric:
+        for i in range(eng.n_nodes):
+            eng._fix(i, [2, 3])           # b = b' = 0 (no public per-node constraint)
     if imperfection:
         eng.set_stretch_growth(1.0, 1.0, lambda s: 1.0 - imperfection * np.cos(np.pi * s / length))
     return eng
