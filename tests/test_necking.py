@@ -7,7 +7,8 @@ Observed:
   levels "bending" and "consistent";
 * onset: the engine's Hessian inertia along the displacement-controlled
   path finds the E_1d onset stretch to 1e-9 (20 elements, bisection to
-  1e-9); h/l = 0.05, 0.1, 0.2 in the slow test;
+  1e-9); h/l = 0.05, 0.1, 0.2 in the slow test; the unstable eigenvector
+  just past it is x0 ~ sin(pi X / l) (correlation 1 - 1e-10), no bending;
 * the power-law solid: nominal stress maximum (Considere) at lam = 1.2422,
   strongly elliptic along the plane-strain tension path to lam = 1.5 (it
   loses ellipticity at lam = 1.60, shear bands at 32 degrees to the axis).
@@ -206,3 +207,26 @@ def test_clear_errors():
         plane_strain_tension(default_law(), -1.0)
     with pytest.raises(ValueError, match="bracket"):
         engine_onset(default_law(), 0.1, 1.0, 10, 1.3, 1.4)
+
+
+def test_engine_unstable_mode_is_the_first_necking_mode():
+    """Just past the onset the engine's one negative Hessian eigenvector is
+    x0 ~ sin(pi X / l), i.e. the stretch perturbation cos(pi X / l), with no
+    bending part (observed correlation 1 - 1e-10 at 1e-6 past the onset)."""
+    from shellritz.solve import symmetric_from_lower
+    law = default_law()
+    lam = onset_stretch(law, 0.1) + 1e-6
+    eng = necking_strip(law, 0.1, 1.0, 20, lam)
+    eng._setup()
+    eng.set_parameter(1.0)
+    _, _, K = eng.evaluate(homogeneous_state(eng, lam), 2)
+    ev, V = np.linalg.eigh(symmetric_from_lower(K).toarray())
+    assert ev[0] < 0 < ev[1]
+    mode = np.zeros(4 * eng.n_nodes)
+    mode[eng.free] = V[:, 0]
+    a, da, b, db = mode.reshape(-1, 4).T
+    s = eng.s
+    assert np.abs(np.r_[b, db]).max() < 1e-8 * np.abs(a).max()
+    shape = np.r_[np.sin(np.pi * s), np.pi * np.cos(np.pi * s)]    # values and slopes
+    corr = abs(np.r_[a, da] @ shape) / (np.linalg.norm(np.r_[a, da]) * np.linalg.norm(shape))
+    assert corr > 1 - 1e-8
