@@ -20,6 +20,12 @@ Built-in laws
 * :class:`LinearIsotropic` -- the linear law of eq:Ww,
   ``W = lambda/2 (tr H)^2 + mu |sym H|^2``, ``H = A - I``, for small-strain
   checks against classical plate and shell theory.
+* :class:`PowerLawHardening` -- a compressible J2 deformation-theory solid
+  with power-law hardening (the material class of Audoly & Hutchinson's
+  necking analysis): effective stress ``~ eps_e^n`` beyond a yield-like strain
+  ``eps0``, logarithmic effective strain (exact for isochoric plane strain),
+  bulk energy ``K/2 (ln J)^2``.  Its uniaxial force-stretch curves have a
+  maximum (Considere), at a log strain of about ``n``.
 
 User laws
 ---------
@@ -42,7 +48,8 @@ from .kernels.material import (COMPACT_INDEX, KIND_INVARIANT, KIND_LINEAR,
                                mat_d4, mat_prepare, new_state)
 
 __all__ = ["Law", "InvariantLaw", "NeoHookean", "CubicStretch",
-           "StVenantKirchhoff", "LinearIsotropic", "invariant_law_from_sympy",
+           "StVenantKirchhoff", "LinearIsotropic", "PowerLawHardening",
+           "invariant_law_from_sympy",
            "PSI_SIGNATURE", "COMPACT_INDEX"]
 
 
@@ -50,6 +57,13 @@ def _check_finite(name, **values):
     for key, val in values.items():
         if not (isinstance(val, (int, float, np.floating, np.integer)) and math.isfinite(val)):
             raise ValueError(f"{name}: parameter {key}={val!r} must be a finite number")
+
+
+def _check_poisson(name, nu):
+    _check_finite(name, nu=nu)
+    if not -1.0 < nu < 0.5:
+        raise ValueError(f"{name}: Poisson ratio nu={nu!r} must satisfy -1 < nu < 0.5"
+                         " (nu -> 0.5 is incompressible, not representable)")
 
 
 class Law:
@@ -179,6 +193,15 @@ def _tmul(a, b, out):
 
 
 @nb.njit(cache=True)
+def _tvar(value, k):
+    """Taylor series of the k-th variable (0: I1, 1: I2, 2: J) at value."""
+    x = np.zeros(35)
+    x[0] = value
+    x[1 + k] = 1.0
+    return x
+
+
+@nb.njit(cache=True)
 def _cubic_stretch_psi(I1, I2, J, nu, out):
     # largest root t0 of q(t) = t^4 - 2 I1 t^2 - 8 J t + I1^2 - 4 I2 (= tr U)
     t = math.sqrt(3.0 * I1)
@@ -191,15 +214,9 @@ def _cubic_stretch_psi(I1, I2, J, nu, out):
             break
     dq0 = 4.0 * t ** 3 - 4.0 * I1 * t - 8.0 * J
     # Taylor variables: I1 + e1, I2 + e2, J + e3; unknown T = t + tau
-    x1 = np.zeros(35)
-    x2 = np.zeros(35)
-    x3 = np.zeros(35)
-    x1[0] = I1
-    x1[1] = 1.0
-    x2[0] = I2
-    x2[2] = 1.0
-    x3[0] = J
-    x3[3] = 1.0
+    x1 = _tvar(I1, 0)
+    x2 = _tvar(I2, 1)
+    x3 = _tvar(J, 2)
     T = np.zeros(35)
     T[0] = t
     T2 = np.zeros(35)
@@ -237,6 +254,108 @@ def _psi_cubic_stretch(I1, I2, J, par, out):
         out[n] = res[n]
 
 
+@nb.njit(cache=True)
+def _tcompose(d, x, out):
+    """Taylor series of f(x): out = sum_k d[k]/k! (x - x[0])^k, with d (5) the
+    derivatives of order 0..4 of a univariate f at x[0] (Horner)."""
+    dx = x.copy()
+    dx[0] = 0.0
+    tmp = np.zeros(35)
+    for n in range(35):
+        out[n] = 0.0
+    out[0] = d[4] / 24.0
+    for k, fact in ((3, 6.0), (2, 2.0), (1, 1.0), (0, 1.0)):
+        _tmul(out, dx, tmp)
+        for n in range(35):
+            out[n] = tmp[n]
+        out[0] += d[k] / fact
+
+
+@nb.njit(cache=True)
+def _acosh2_derivatives(y, d):
+    """F(y) = acosh(y)^2 and its derivatives of order 1..4 into d (5), y >= 1
+    (an analytic function of y; acosh alone has a square-root branch at 1).
+    F solves (y^2 - 1) F'' + y F' = 2, and differentiating k times,
+    (y^2 - 1) F^(k+2) + (2k+1) y F^(k+1) + k^2 F^(k) = 0.  Near y = 1 this
+    recurrence (at y = 1) gives the Taylor series F = sum c_k (y - 1)^k,
+    c_1 = 2, c_(k+1) = -k^2 c_k / ((2k+1)(k+1)) (radius of convergence 2);
+    away from 1 the closed form F' = 2 acosh(y) / sqrt(y^2 - 1) and the
+    recurrence solved for F^(k+2) (no cancellation once y^2 - 1 >= 1.25)."""
+    x = y - 1.0
+    if x < 0.5:
+        for m in range(5):
+            d[m] = 0.0
+        c = 2.0
+        for k in range(1, 60):
+            for m in range(min(k, 4), -1, -1):
+                ff = 1.0       # k! / (k - m)!
+                for j in range(m):
+                    ff *= k - j
+                d[m] += c * ff * x ** (k - m)
+            c *= -k * k / ((2.0 * k + 1.0) * (k + 1.0))
+        return
+    a = math.acosh(y)
+    r2 = y * y - 1.0
+    d[0] = a * a
+    d[1] = 2.0 * a / math.sqrt(r2)
+    d[2] = (2.0 - y * d[1]) / r2
+    for k in (1, 2):
+        d[k + 2] = -((2 * k + 1) * y * d[k + 1] + k * k * d[k]) / r2
+
+
+@nb.njit(cache=True)
+def _power_law_psi(I1, J, mu, n, eps0, K, out):
+    """psi(I1, J) of PowerLawHardening as compact Taylor coefficients x
+    factorials (see the class docstring for the formulas)."""
+    x1 = _tvar(I1, 0)
+    x3 = _tvar(J, 2)
+    d = np.zeros(5)
+    # J^(-2/3)
+    p = -2.0 / 3.0
+    c = 1.0
+    for k in range(5):
+        d[k] = c * J ** (p - k)
+        c *= p - k
+    jm = np.zeros(35)
+    _tcompose(d, x3, jm)
+    s = np.zeros(35)                     # s = I1 J^(-2/3) - 3 >= 0
+    _tmul(x1, jm, s)
+    s[0] -= 3.0
+    # e2 = eps_e^2 = acosh(1 + s/2)^2 / 3
+    _acosh2_derivatives(1.0 + 0.5 * s[0], d)
+    for k in range(5):
+        d[k] /= 3.0 * 2.0 ** k
+    e2 = np.zeros(35)
+    _tcompose(d, s, e2)
+    # g(e2) = 3 mu eps0^2/(1+n) [(1 + e2/eps0^2)^((1+n)/2) - 1]
+    m = 0.5 * (1.0 + n)
+    base = 1.0 + e2[0] / (eps0 * eps0)
+    c = 3.0 * mu * eps0 * eps0 / (1.0 + n)
+    d[0] = c * (base ** m - 1.0)
+    for k in range(1, 5):
+        c *= (m - k + 1.0) / (eps0 * eps0)
+        d[k] = c * base ** (m - k)
+    g = np.zeros(35)
+    _tcompose(d, e2, g)
+    for i in range(35):
+        out[i] = g[i] * _TFACT[i]
+    # K/2 (ln J)^2: entries d/dJ ... d4/dJ4 (compact 3, 9, 19, 34)
+    L = math.log(J)
+    out[0] += 0.5 * K * L * L
+    out[3] += K * L / J
+    out[9] += K * (1.0 - L) / J ** 2
+    out[19] += K * (2.0 * L - 3.0) / J ** 3
+    out[34] += K * (11.0 - 6.0 * L) / J ** 4
+
+
+@nb.cfunc(PSI_SIGNATURE, cache=True)
+def _psi_power_law(I1, I2, J, par, out):
+    res = np.zeros(35)
+    _power_law_psi(I1, J, par[0], par[1], par[2], par[3], res)
+    for n in range(35):
+        out[n] = res[n]
+
+
 # ---------------------------------------------------------------------------
 # built-in laws
 # ---------------------------------------------------------------------------
@@ -257,10 +376,7 @@ class NeoHookean(Law):
         if C <= 0:
             raise ValueError(f"NeoHookean: shear modulus C={C!r} must be > 0")
         if nu is not None:
-            _check_finite("NeoHookean", nu=nu)
-            if not -1.0 < nu < 0.5:
-                raise ValueError(f"NeoHookean: Poisson ratio nu={nu!r} must satisfy -1 < nu < 0.5"
-                                 " (nu -> 0.5 is incompressible, not representable)")
+            _check_poisson("NeoHookean", nu)
             D = 2.0 * C * nu / (1.0 - 2.0 * nu)
         _check_finite("NeoHookean", D=D)
         if D <= -2.0 * C / 3.0:
@@ -294,11 +410,10 @@ def _lame(name, lam, mu):
 
 
 def _young_to_lame(name, E, nu):
-    _check_finite(name, E=E, nu=nu)
+    _check_finite(name, E=E)
     if E <= 0:
         raise ValueError(f"{name}: Young's modulus E={E!r} must be > 0")
-    if not -1.0 < nu < 0.5:
-        raise ValueError(f"{name}: Poisson ratio nu={nu!r} must satisfy -1 < nu < 0.5")
+    _check_poisson(name, nu)
     return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
 
 
@@ -329,6 +444,57 @@ class LinearIsotropic(Law):
     @classmethod
     def from_young(cls, E, nu):
         return cls(*_young_to_lame("LinearIsotropic", E, nu))
+
+
+class PowerLawHardening(Law):
+    """Compressible J2 deformation-theory solid with power-law hardening.
+
+        W = g(eps_e^2) + K/2 (ln J)^2,
+        g(e2) = 3 mu eps0^2 / (1 + n) [(1 + e2/eps0^2)^((1 + n)/2) - 1],
+        eps_e^2 = acosh(1 + s/2)^2 / 3,   s = I1 J^(-2/3) - 3 >= 0.
+
+    The effective stress-strain curve ``sigma_e = dg/deps_e = 3 mu eps_e
+    (1 + eps_e^2/eps0^2)^((n-1)/2)`` is linear (shear modulus ``mu``) for
+    ``eps_e << eps0`` and the power law ``3 mu eps0^(1-n) eps_e^n`` for
+    ``eps_e >> eps0``: a smoothed version of the power-law solid of Audoly &
+    Hutchinson (2016) (hyperelastic: loading and unloading follow the same
+    curve).  ``eps_e`` is the von Mises equivalent logarithmic strain
+    ``sqrt(2/3) |dev ln U|`` exactly for isochoric plane strain (stretches
+    ``(e^u, 1, e^-u)`` give ``s = 2 cosh 2u - 2``) and at small strain, and a
+    smooth function of the invariants everywhere (no eigenvalues).  Small
+    strain: shear modulus ``mu``, bulk modulus ``K``.
+
+    Parameters: ``mu`` > 0, hardening exponent ``0 < n <= 1`` (``n = 1``:
+    no hardening transition), yield-like strain ``eps0`` > 0, and exactly one
+    of the bulk modulus ``K`` > 0 or the small-strain Poisson ratio ``nu``
+    (-1 < nu < 1/2, ``K = 2 mu (1 + nu) / (3 (1 - 2 nu))``).
+    """
+
+    name = "power-law hardening"
+
+    def __init__(self, mu, n, eps0, K=None, nu=None):
+        if (nu is None) == (K is None):
+            raise ValueError("PowerLawHardening: give exactly one of K (bulk modulus) or nu")
+        _check_finite("PowerLawHardening", mu=mu, n=n, eps0=eps0)
+        if mu <= 0:
+            raise ValueError(f"PowerLawHardening: shear modulus mu={mu!r} must be > 0")
+        if not 0 < n <= 1:
+            raise ValueError(f"PowerLawHardening: hardening exponent n={n!r} must satisfy 0 < n <= 1")
+        if eps0 <= 0:
+            raise ValueError(f"PowerLawHardening: yield strain eps0={eps0!r} must be > 0")
+        if nu is not None:
+            _check_poisson("PowerLawHardening", nu)
+            K = 2.0 * mu * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu))
+        _check_finite("PowerLawHardening", K=K)
+        if K <= 0:
+            raise ValueError(f"PowerLawHardening: bulk modulus K={K!r} must be > 0")
+        self.mu, self.n, self.eps0, self.K = float(mu), float(n), float(eps0), float(K)
+        super().__init__((mu, n, eps0, K), _psi_power_law)
+
+    @property
+    def nu(self):
+        """Small-strain Poisson ratio."""
+        return (3.0 * self.K - 2.0 * self.mu) / (2.0 * (3.0 * self.K + self.mu))
 
 
 def invariant_law_from_sympy(expr, I1, I2, J, params=(), values=(), name="custom"):
