@@ -33,7 +33,7 @@ from scipy.optimize import brentq
 
 from .discretize.planestrain import PlaneStrainShell
 from .materials import Law, PowerLawHardening
-from .solve import factorize_if_positive_definite, symmetric_from_lower
+from .linalg import make_linear_solver
 
 __all__ = ["PlaneStrainTension", "plane_strain_tension", "e1d_energy", "considere_stretch",
            "onset_stretch", "necking_strip", "homogeneous_state", "engine_inertia",
@@ -165,12 +165,12 @@ def engine_inertia(law, h, length, n, lam, level="consistent"):
     the homogeneous state of mean stretch lam on the displacement-controlled
     path (an exact equilibrium of the discretized energy: its gradient, also
     returned, is round-off), by the engine solver's inertia test (pivot signs
-    of the LDL^T factorization)."""
+    of its LDL^T factorization, linalg.py)."""
     eng = necking_strip(law, h, length, n, lam, level)
     eng._setup()                      # the solver protocol's set-up (as solve() does)
     eng.set_parameter(1.0)
     _, g, K = eng.evaluate(homogeneous_state(eng, lam), 2)
-    _, negative = factorize_if_positive_definite(symmetric_from_lower(K))
+    negative = make_linear_solver("auto", K.shape[0], K.indptr, K.indices).factorize(K)
     if negative is None:
         raise ValueError(f"engine_inertia: singular Hessian at lam = {lam!r}")
     return negative, float(np.abs(g).max())

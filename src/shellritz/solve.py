@@ -588,6 +588,9 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
         if opts.verbose and len(history.path) > 1:
             print(f"  arc t = {t:.5f} (ds = {ds:.4g}, {negative} negative eigenvalues)", flush=True)
         gt = _parameter_derivative(problem, x, t)
+        # force scale of the path: the loads, or what the parameter does to the
+        # gradient (prescribed motions: no loads at all)
+        g_scale = max(g_ref, problem.load_scale(), np.linalg.norm(gt))
         dx = lin.solver.solve(-gt)
         norm = np.sqrt(dx @ dx / L2 + 1.0)
         tau_x, tau_t = dx / norm, 1.0 / norm
@@ -596,7 +599,7 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
         while True:
             saved = problem.save_point()
             ok, xn, tn, its = _riks_corrector(problem, x, t, tau_x, tau_t, ds, L2, opts, history,
-                                              lin, g_ref)
+                                              lin, g_scale)
             if ok:
                 break
             ds = _step_back(problem, saved, t, ds, min_ds, opts, history, "arc step")
@@ -620,9 +623,12 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
                      last_t=t, history=history)
 
 
-def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g_ref):
+def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g_scale):
     """Newton on g(x, t) = 0 and the plane (x - xp).tau_x / L^2 + (t - tp) tau_t = 0
-    through the predictor (xp, tp) = (x0, t0) + ds tau."""
+    through the predictor (xp, tp) = (x0, t0) + ds tau; converged at
+    |g| <= rtol g_scale or when the correction is at round-off."""
+    size = np.sqrt(L2)
+    last = np.inf
     x = x0 + ds * tau_x
     t = t0 + ds * tau_t
     for it in range(opts.max_iter):
@@ -636,7 +642,7 @@ def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g
         history.assemblies += 1
         gnorm = np.linalg.norm(g)
         c = (x - x0) @ tau_x / L2 + (t - t0) * tau_t - ds
-        if gnorm <= opts.rtol * max(g_ref, problem.load_scale(), 1e-300) and abs(c) <= 1e-10 * ds:
+        if (gnorm <= opts.rtol * g_scale or last <= opts.xtol * size) and abs(c) <= 1e-10 * ds:
             return True, x, t, it
         negative, setup = lin.factorize(K)
         gt = _parameter_derivative(problem, x, t)
@@ -645,6 +651,7 @@ def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g
         dt = -(c + tau_x @ a / L2) / (tau_x @ b / L2 + tau_t)
         x = x + a + dt * b
         t = t + dt
+        last = max(np.abs(a + dt * b).max(), abs(dt) * size)
         history.iterations.append(Iteration(t, it, E, gnorm, float(np.abs(a + dt * b).max()), np.nan,
                                             True, negative, 1, "bordered", lin.solver.name, setup,
                                             0.0, time.perf_counter() - tic))
