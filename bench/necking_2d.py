@@ -46,7 +46,7 @@ sys.path.insert(0, str(HERE))
 import fe3d  # noqa: E402  (Newton with line search, linear solver)
 from shellritz.kernels.material import M_AA, S_W, V_P, mat_prepare, new_state  # noqa: E402
 from shellritz.necking import considere_stretch, default_law, plane_strain_tension  # noqa: E402
-from shellritz.solve import factorize_if_positive_definite  # noqa: E402
+from shellritz.linalg import negative_eigenvalues  # noqa: E402
 
 IN_PLANE = np.array([0, 2])          # X, Z among the 3D axes (Y: out of plane)
 
@@ -204,7 +204,7 @@ def block_inertia(block, lam):
     U = block.homogeneous(plane_strain_tension(block.law, lam).z1)
     fm = block.free_mask
     K = block.tangent(U)[fm][:, fm].tocsc()
-    _, negative = factorize_if_positive_definite(K)
+    negative = negative_eigenvalues(sp.tril(K).tocsr())
     _, R = block.energy_residual(U)
     return negative, float(np.abs(R[fm]).max())
 
@@ -285,7 +285,7 @@ def _in_plane_ellipticity(block, U, n_dir=72):
 def _path_row(block, U, its):
     x, t = block.profile(U)
     fm = block.free_mask
-    _, negative = factorize_if_positive_definite(block.tangent(U)[fm][:, fm].tocsc())
+    negative = negative_eigenvalues(sp.tril(block.tangent(U)[fm][:, fm]).tocsr())
     return {"lam": block.lam, "force": block.end_force(U), "t_min": float(t.min()),
             "iterations": its, "negative_eigenvalues": negative,
             "ellipticity": _in_plane_ellipticity(block, U), "x": x.tolist(), "thickness": t.tolist()}

@@ -233,10 +233,6 @@ class DirectSolver:
         data[self._diag] += REGULARIZATION * np.abs(data[self._diag]).max(initial=0.0)
         return data
 
-    @property
-    def negative(self):
-        return None if self._current is None else self._slots[self._current].negative
-
     def solve(self, b):
         """K^-1 b with the current (possibly indefinite) factorization (if
         regularized: one step of iterative refinement against K, so the error
@@ -256,11 +252,6 @@ class DirectSolver:
         """The preconditioner is the factorization of the current Hessian."""
         return self._pd is not None and self._pd == self._current
 
-    def forget_positive_definite(self):
-        """Drop the lagged factor (the pattern's state has changed a lot)."""
-        if self._pd is not None and self._pd != self._current:
-            self._pd = None
-
     def release(self):
         for s in self._slots:
             s.release()
@@ -274,9 +265,12 @@ class AMGSolver:
     get an identity row scaled to the diagonal), so that it has 9 x 9 nodal
     blocks; the near null space is the six rigid-body modes of the current
     state (translations, and rotations acting on positions and tangent
-    derivatives).  The hierarchy is built on a positive definite Hessian and
-    reused while the Krylov iterations stay below ``rebuild_growth`` times
-    those right after a build.
+    derivatives).  The hierarchy is built on the first Hessian (the
+    reference state) and rebuilt on the current one when the CG iterations
+    grow beyond ``rebuild_growth`` times those after the last build, but only
+    where CG met no negative curvature (a V-cycle of an indefinite Hessian is
+    no SPD preconditioner); if a rebuilt one turns out not SPD, the previous
+    hierarchy comes back.
     """
 
     direct = False
@@ -287,11 +281,10 @@ class AMGSolver:
         self.block, self.free_full, self.n_full, self.rigid_modes = layout
         self.rebuild_growth = rebuild_growth
         self.options = dict(options or {})
-        self._ml = None
+        self._ml = self._previous = None
         self._its_at_build = None
         self.K = None
-        self.negative = None
-        self.build_count = 0
+        self.builds = 0
 
     def _embed(self, K):
         A = symmetric_from_lower(K)
@@ -301,20 +294,19 @@ class AMGSolver:
         fixed[self.free_full] = False
         d = np.abs(A.diagonal())
         scale = np.median(d[d > 0]) if np.any(d > 0) else 1.0
-        full = (P @ A @ P.T + sp.diags(np.where(fixed, scale, 0.0))).tocsr()
-        return full
+        return (P @ A @ P.T + sp.diags(np.where(fixed, scale, 0.0))).tocsr()
 
     def factorize(self, K):
-        """Keep K; the hierarchy is built lazily (see ``note_iterations``)."""
+        """Keep K (the hierarchy is built on the first one); no inertia."""
         self.K = K
         if self._ml is None:
             self._build(K)
         return None
 
     def _build(self, K):
+        import warnings
         import pyamg
         A = self._embed(K).tobsr(blocksize=(self.block, self.block))
-        B = self.rigid_modes()
         opts = dict(symmetry="symmetric",
                     strength=("symmetric", {"theta": 0.0}),
                     smooth=("energy", {"krylov": "cg", "maxiter": 4, "degree": 2, "weighting": "local"}),
@@ -322,39 +314,53 @@ class AMGSolver:
                     postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     max_coarse=3000, coarse_solver="splu")
         opts.update(self.options)
-        t0 = time.perf_counter()
-        self._ml = pyamg.smoothed_aggregation_solver(A, B=B, **opts)
-        self.build_seconds = time.perf_counter() - t0
+        with warnings.catch_warnings():
+            # six rigid modes for 9 DOFs per node: pyamg warns, on purpose here
+            warnings.filterwarnings("ignore", message="Having less target vectors")
+            ml = pyamg.smoothed_aggregation_solver(A, B=self.rigid_modes(), **opts)
+        self._previous, self._ml = self._ml, ml
         self._its_at_build = None
-        self.build_count += 1
+        self.builds += 1
 
-    def note_iterations(self, its):
-        """Rebuild the hierarchy (on the current K) when CG slows down."""
+    def note_iterations(self, its, reason):
+        """After a CG solve: rebuild the hierarchy on the current Hessian if
+        CG slowed down without meeting negative curvature.  Returns the
+        seconds spent rebuilding (0: kept)."""
         if self._its_at_build is None:
             self._its_at_build = max(its, 1)
-            return False
-        if its > self.rebuild_growth * self._its_at_build + 5:
+            return 0.0
+        if its > self.rebuild_growth * self._its_at_build + 5 and reason != "negative curvature":
+            t0 = time.perf_counter()
             self._build(self.K)
-            return True
-        return False
+            return time.perf_counter() - t0
+        return 0.0
+
+    def restore_previous(self):
+        """Back to the previous hierarchy (the rebuilt one was not SPD);
+        False if there is none."""
+        if self._previous is None:
+            return False
+        self._ml, self._previous = self._previous, None
+        self._its_at_build = None
+        return True
 
     def preconditioner(self):
         ml, free, nf = self._ml, self.free_full, self.n_full
 
-        def apply(r):
+        def cycle(r):
             full = np.zeros(nf)
             full[free] = r
             return ml.solve(full, x0=np.zeros(nf), tol=1e-30, maxiter=1, cycle="V")[free]
+
+        def apply(r):                       # one V-cycle per vector
+            return cycle(r) if r.ndim == 1 else np.column_stack([cycle(c) for c in r.T])
         return apply
 
     def current_is_positive_definite(self):
         return False
 
-    def forget_positive_definite(self):
-        pass
-
     def release(self):
-        self._ml = None
+        self._ml = self._previous = None
 
 
 def make_linear_solver(method, n, indptr, indices, layout=None, singular=False):
@@ -366,6 +372,15 @@ def make_linear_solver(method, n, indptr, indices, layout=None, singular=False):
     if method == "amg":
         return AMGSolver(n, layout)
     return DirectSolver(method, n, indptr, indices, regularize=singular)
+
+
+def negative_eigenvalues(K, method="auto"):
+    """Number of negative eigenvalues of the symmetric sparse matrix given by
+    its lower triangle K (CSR), from the pivots of one LDL^T factorization."""
+    K = sp.csr_matrix(K)
+    K.sort_indices()
+    return DirectSolver(resolve_method(method, K.shape[0], has_blocks=False), K.shape[0],
+                        K.indptr, K.indices).factorize(K)
 
 
 # -------------------------------------------------------------- Krylov: CG

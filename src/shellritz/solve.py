@@ -127,7 +127,12 @@ class SolveHistory:
     path: list = field(default_factory=list)      # arc length: dicts t, energy, negative, monitor
     linear: str = ""            # linear method
     factorizations: int = 0
-    assemblies: int = 0
+    evaluations: list = field(default_factory=lambda: [0, 0, 0])   # energy / +gradient / +Hessian
+
+    @property
+    def assemblies(self):
+        """Hessian assemblies (each with the energy and gradient)."""
+        return self.evaluations[2]
 
     def write_path(self, filename):
         """The arc-length path (t, energy, negative eigenvalues, monitored
@@ -221,7 +226,6 @@ def minimize(problem, t, opts, history, g_ref, lin):
         if opts.verbose:
             print(f"    t={t:.4f}: start state not admissible ({exc})")
         return None
-    history.assemblies += 1
     gnorm = np.linalg.norm(g)
     size = problem.size_scale()
     # floor: round-off level, the force of a relative displacement ftol on the stiffest DOF
@@ -241,6 +245,7 @@ def minimize(problem, t, opts, history, g_ref, lin):
     factorized = False          # the factorization belongs to the current x
     gnorm_prev, eta = None, 0.1
     first_norm = None           # size of the first step (trust region collapse test)
+    last_accepted = True        # the last trust-region step was accepted
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= opts.xtol * size:
@@ -270,8 +275,25 @@ def minimize(problem, t, opts, history, g_ref, lin):
         try:
             p, info = steihaug_cg(matvec, g, lin.preconditioner(K), r, eta, opts.max_cg, lin.project)
         except LinearSolverError as exc:
-            history.notes.append(f"t={t:.4g} it={it}: {exc}; Jacobi preconditioner")
-            p, info = steihaug_cg(matvec, g, jacobi(K), r, eta, opts.max_cg, lin.project)
+            if not lin.direct and lin.solver.restore_previous():
+                history.notes.append(f"t={t:.4g} it={it}: rebuilt AMG hierarchy not SPD ({exc}); "
+                                     "previous hierarchy restored")
+                M = lin.preconditioner(K)
+            else:
+                history.notes.append(f"t={t:.4g} it={it}: {exc}; Jacobi preconditioner")
+                M = jacobi(K)
+            p, info = steihaug_cg(matvec, g, M, r, eta, opts.max_cg, lin.project)
+        solve_s = time.perf_counter() - ts
+        if not lin.direct:
+            rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
+            setup += rebuilt
+            if rebuilt and opts.verbose:
+                print(f"    AMG hierarchy rebuilt ({info['iterations']} CG iterations)", flush=True)
+            lin.amg_failures = 0 if info["reason"] != "maxiter" else lin.amg_failures + 1
+            if lin.amg_failures >= 2:
+                negative, more = lin.fall_back_to_direct(K, f"CG reached {opts.max_cg} iterations twice")
+                setup += more
+                continue
         newton_step = exact and info["reason"] == "converged"
         if newton_step and np.abs(p).max() <= opts.xtol * size:
             return K                # the Newton correction is at round-off
@@ -280,16 +302,6 @@ def minimize(problem, t, opts, history, g_ref, lin):
             info.update(norm_M=radius, reason="boundary")
             newton_step = False
         first_norm = first_norm or info["norm_M"]
-        solve_s = time.perf_counter() - ts
-        if not lin.direct:
-            krylov_ok = info["reason"] != "maxiter"
-            if lin.solver.note_iterations(info["iterations"]) and opts.verbose:
-                print(f"    AMG hierarchy rebuilt ({info['iterations']} CG iterations)", flush=True)
-            lin.amg_failures = 0 if krylov_ok else lin.amg_failures + 1
-            if lin.amg_failures >= 2:
-                negative, more = lin.fall_back_to_direct(K, f"CG reached {opts.max_cg} iterations twice")
-                setup += more
-                continue
         Kp = matvec(p)
         slope = g @ p
         predicted = -(slope + 0.5 * (p @ Kp))
@@ -302,7 +314,10 @@ def minimize(problem, t, opts, history, g_ref, lin):
             continue
         saved = problem.save_point()
         if trust:
-            accepted, En, alpha = _trust_trial(problem, x, p, E, gnorm, predicted, noise(E))
+            accepted, En, trial = _trust_trial(problem, x, p, E, gnorm, predicted, noise(E),
+                                               with_hessian=last_accepted)
+            alpha = 1.0
+            last_accepted = accepted
             ratio_good = accepted and (En is None or E - En >= 0.75 * predicted)
             if not accepted and newton_step and abs(predicted) <= noise(E) and En is not None:
                 problem.restore_point(saved)
@@ -322,6 +337,7 @@ def minimize(problem, t, opts, history, g_ref, lin):
             if slope >= 0:             # not a descent direction (cannot happen with SPD M)
                 p, slope = -g, -gnorm ** 2
             accepted, alpha = _line_search(problem, x, p, E, gnorm, slope, opts, noise(E))
+            trial = None
             if not accepted and newton_step and abs(predicted) <= noise(E):
                 problem.restore_point(saved)
                 return K            # the full Newton step is lost in round-off: converged
@@ -337,12 +353,14 @@ def minimize(problem, t, opts, history, g_ref, lin):
             x = x + alpha * p
             last_step = np.abs(p).max() if newton_step and alpha == 1.0 else np.inf
             problem.set_free_state(x)
-            try:
-                E, g, K = problem.evaluate(x, 2)
-            except EvaluationError:
-                problem.restore_point(saved)
-                return None
-            history.assemblies += 1
+            if trial is not None:
+                E, g, K = trial
+            else:
+                try:
+                    E, g, K = problem.evaluate(x, 2)
+                except EvaluationError:
+                    problem.restore_point(saved)
+                    return None
             factorized = False
             gnorm_prev, gnorm = gnorm, np.linalg.norm(g)
             gnorms.append(gnorm)
@@ -359,24 +377,29 @@ def minimize(problem, t, opts, history, g_ref, lin):
     return None
 
 
-def _trust_trial(problem, x, p, E, gnorm, predicted, noise):
-    """Evaluate the trust-region step: (accepted, new energy or None, 1.0)."""
+def _trust_trial(problem, x, p, E, gnorm, predicted, noise, with_hessian):
+    """Evaluate the trust-region step x + p: (accepted, new energy or None,
+    (E, g, K) at x + p or None).  ``with_hessian``: evaluate the Hessian
+    with the energy (one assembly instead of two when the step is accepted,
+    as it usually is after an accepted step)."""
     xn = x + p
     try:
-        En, _, _ = problem.evaluate(xn, 0)
+        trial = problem.evaluate(xn, 2 if with_hessian else 0)
     except EvaluationError:
-        return False, None, 1.0
+        return False, None, None
+    En = trial[0]
     if not np.isfinite(En):
-        return False, None, 1.0
+        return False, None, None
+    kept = trial if with_hessian else None
     if predicted > 0 and E - En >= 0.1 * predicted:
-        return True, En, 1.0
+        return True, En, kept
     # near the solution the energy test drowns in round-off: accept steps
     # that reduce the gradient instead
     if abs(En - E) <= noise:
-        _, gn, _ = problem.evaluate(xn, 1)
+        gn = trial[1] if with_hessian else problem.evaluate(xn, 1)[1]
         if np.linalg.norm(gn) < gnorm:
-            return True, None, 1.0
-    return False, En, 1.0
+            return True, None, kept
+    return False, En, None
 
 
 def _line_search(problem, x, p, E, gnorm, slope, opts, noise):
@@ -420,16 +443,15 @@ def lowest_eigenpairs(lin, K, count):
 def assess_stability(problem, K, opts, history, lin, t):
     """Inertia (and eigenpairs on request) of the Hessian K at a converged
     state.  Returns the most unstable mode (or None)."""
+    if K.shape[0] == 0:
+        return None
+    negative, _ = lin.factorize(K)      # inertia (direct); AMG: preconditioner set-up
     mode = opts.stability
     if mode == "auto":
-        mode = "inertia" if lin.direct or lin.solver is None else "off"
-    if mode == "off" or K.shape[0] == 0:
+        mode = "inertia" if lin.direct else "off"
+    if mode == "off":
         history.stable, history.unstable_modes = None, None
         return None
-    if lin.solver is None or lin.direct:
-        negative, _ = lin.factorize(K)
-    else:
-        negative = None
     vec = None
     if mode == "eigen" or negative is None or (negative and opts.escape):
         count = 3 if negative is None else max(negative, 1) + 1
@@ -498,11 +520,26 @@ def equilibrium(problem, t, opts, history, g_ref, lin):
 
 
 # --------------------------------------------------------------- continuation
+class _Counted:
+    """The problem, with its evaluations counted by mode in the history."""
+
+    def __init__(self, problem, history):
+        self._problem, self._history = problem, history
+
+    def __getattr__(self, name):
+        return getattr(self._problem, name)
+
+    def evaluate(self, x, mode):
+        self._history.evaluations[mode] += 1
+        return self._problem.evaluate(x, mode)
+
+
 def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0):
     """Follow the equilibrium from t_start to 1: adaptive steps in t
     (opts.path == "load") or arc length (opts.path == "arclength")."""
     opts = opts or SolverOptions()
     history = SolveHistory()
+    problem = _Counted(problem, history)
     lin = _Linear(problem, opts, history)
     t = t_start
     problem.set_parameter(t)
@@ -579,7 +616,6 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
     for _ in range(opts.arc_max_steps):
         # inertia and tangent at the converged point: K dx = -dg/dt, dt = 1, normalized
         E, _, K = problem.evaluate(x, 2)
-        history.assemblies += 1
         negative, _ = lin.factorize(K)
         if not lin.direct:
             raise SolveError("arc length needs a direct linear solver (linear='pardiso' or 'superlu')",
@@ -639,7 +675,6 @@ def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g
             E, g, K = problem.evaluate(x, 2)
         except EvaluationError:
             return False, x, t, it
-        history.assemblies += 1
         gnorm = np.linalg.norm(g)
         c = (x - x0) @ tau_x / L2 + (t - t0) * tau_t - ds
         if (gnorm <= opts.rtol * g_scale or last <= opts.xtol * size) and abs(c) <= 1e-10 * ds:
