@@ -293,6 +293,8 @@ def run_batch(inputs, out_dir, scene_text, scene_dir=".", scene_name="scene", fm
         s, ps = next(iter(clash.items()))
         raise BatchError(f"inputs with the same stem would write the same outputs: {', '.join(ps)} "
                          f"(stem {s!r}); rename them or convert them into different folders")
+    from .scenefile import loads_scene
+    fmt = (fmt or loads_scene(scene_text, scene_dir, scene_name).output["format"]).lstrip(".")
     scene_sha = hashlib.sha256(scene_text.encode()).hexdigest()
     rows = {}
     todo = []

@@ -71,7 +71,7 @@ def read_surface(path, normal=None):
     point_data, cell_data = {}, {}
     try:
         m = meshio.read(path)
-    except Exception as exc:           # meshio has no reader or cannot parse: try trimesh
+    except (Exception, SystemExit) as exc:   # no reader, or cannot parse (meshio exits): trimesh
         m = None
         meshio_error = exc
     if m is not None:

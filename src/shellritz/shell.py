@@ -240,13 +240,16 @@ class Shell(Solvable):
         dist = np.linalg.norm(D, axis=1)
         far = dist >= 0.5 * dist.max()
         align = np.where(far[:, None], np.abs(D) / np.where(far, dist, 1.0)[:, None], -1.0)
-        b, ax = (int(i) for i in np.unravel_index(np.argmax(align), align.shape))
+        # best aligned; among equally well aligned nodes (1e-12) the farthest
+        score = np.round(align, 12) + 1e-13 * (dist / dist.max())[:, None]
+        b, ax = (int(i) for i in np.unravel_index(np.argmax(score), score.shape))
         others = [k for k in range(3) if k != ax]
         u = D[b] / dist[b]
         perp = np.linalg.norm(D - np.outer(D @ u, u), axis=1)
         far = perp >= 0.5 * perp.max()
         offplane = np.where(far[:, None], np.abs(D[:, others]) / np.where(far, dist, 1.0)[:, None], np.inf)
-        c, k = (int(i) for i in np.unravel_index(np.argmin(offplane), offplane.shape))
+        score = np.round(offplane, 12) - 1e-13 * (perp / perp.max())[:, None]
+        c, k = (int(i) for i in np.unravel_index(np.argmin(score), score.shape))
         normal = others[k]
         self.pin([a])
         target = X[b].copy()
