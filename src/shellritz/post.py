@@ -7,8 +7,9 @@ per node (point data)
     ``displacement`` r - R; ``director`` y1 (eq:mm; the image of the unit
     normal, so a material fibre across the thickness) and
     ``thickness_stretch`` |y1|; ``G0``, ``G1`` the growth at the solved t
-    (9 components, row-major, global); director values are area-weighted
-    averages of the element means.
+    (9 components, row-major, global).  At a node: the direction of the
+    area-weighted mean of y1 over the quadrature points around it, with the
+    mean of |y1| as its length.
 per triangle (cell data, means over the quadrature points)
     ``principal_stretch`` (3, descending): the singular values of the
     deformation gradient F0 = grad r + y1 (x) n (total stretch, growth
@@ -106,6 +107,16 @@ def _nodal(mesh, area, values):
     return out / wsum[:, None]
 
 
+def _nodal_director(mesh, area, Y1):
+    """Nodal director and thickness stretch from the quadrature values y1
+    (m, nq, 3): the direction of the area-weighted mean of y1, and the mean
+    of |y1| as its length (averaging the vectors alone would shorten them
+    where the surface is curved)."""
+    length = _nodal(mesh, area, np.repeat(np.linalg.norm(Y1, axis=2).mean(axis=1)[:, None], 3, axis=1))[:, 0]
+    mean = _nodal(mesh, area, Y1.mean(axis=1))
+    return mean * (length / np.linalg.norm(mean, axis=1))[:, None], length
+
+
 def fields(result):
     """Point and cell fields of a result (module docstring), as dicts."""
     s = result.shell
@@ -122,9 +133,9 @@ def fields(result):
     # deterministic signs of the directions: largest component positive
     big = np.take_along_axis(Lu, np.argmax(np.abs(Lu), axis=1)[:, None, :], axis=1)
     Lu = Lu * np.sign(big)
-    director = _nodal(mesh, area, result.y1.mean(axis=1))
+    director, stretch_n = _nodal_director(mesh, area, result.y1)
     point = {"displacement": result.displacement, "director": director,
-             "thickness_stretch": np.linalg.norm(director, axis=1),
+             "thickness_stretch": stretch_n,
              "G0": G0.reshape(-1, 9), "G1": G1.reshape(-1, 9)}
     cell = {"principal_stretch": stretch,
             "principal_direction_1": Lu[:, :, 0], "principal_direction_2": Lu[:, :, 1],
@@ -145,7 +156,7 @@ def faces(result):
     """Nodal positions of the faces Z = -h/2 and Z = +h/2 (eq:y)."""
     s = result.shell
     area = s.mesh.areas
-    y1 = _nodal(s.mesh, area, result.y1.mean(axis=1))
+    y1, _ = _nodal_director(s.mesh, area, result.y1)
     y2 = _nodal(s.mesh, area, result.y2.mean(axis=1))
     h = s.h
     mid = result.r + (h * h / 12.0) * y2

@@ -90,7 +90,8 @@ def _laws():
         obj = getattr(materials, name)
         if (isinstance(obj, type) and issubclass(obj, materials.Law)
                 and obj not in (materials.Law, materials.InvariantLaw)):
-            out[_norm(name)] = obj
+            out[_norm(name)] = obj          # the class name, e.g. NeoHookean
+            out[_norm(obj.name)] = obj      # and the law's own, e.g. neo-Hookean
     return out
 
 
@@ -112,7 +113,7 @@ def _material(table):
     where = "[material]"
     if "law" not in table:
         raise SceneError(f"{where}: missing key 'law'; choose one of "
-                         f"{', '.join(sorted(_laws()))}, invariant")
+                         f"{', '.join(sorted({c.__name__ for c in _laws().values()}))}, invariant")
     law = table["law"]
     params = {k: v for k, v in table.items() if k != "law"}
     if not isinstance(law, str):
@@ -142,7 +143,7 @@ def _material(table):
     cls = laws.get(_norm(law))
     if cls is None:
         raise SceneError(f"{where} law: unknown law {law!r}; choose one of "
-                         f"{', '.join(sorted(laws))}, invariant")
+                         f"{', '.join(sorted({c.__name__ for c in laws.values()}))}, invariant")
     for k, v in params.items():
         _number(v, f"{where} {k}")
     options = []
