@@ -204,3 +204,30 @@ def test_killed_batch_resumes_to_complete_identical_outputs(serial, scene, tmp_p
     assert counts == {"skipped": len(done), "ok": 3 - len(done)}
     assert outputs(out) == outputs(out_serial)
     assert not list(out.glob(".*"))
+
+
+def test_dask_worker_killed_mid_run_is_replaced_and_the_batch_completes(serial, scene, tmp_path):
+    """SIGKILL the Dask worker while it solves: the nanny starts a new worker,
+    the scheduler reruns the lost task, the batch completes, same outputs."""
+    import threading
+
+    from dask.distributed import Client, LocalCluster
+    inputs, out_serial, _ = serial
+    out = tmp_path / "out"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        pid = next(iter(client.run(os.getpid).values()))
+        codes = []
+        run = threading.Thread(target=lambda: codes.append(main(
+            ["convert", str(inputs), "-o", str(out), "--scene", str(scene),
+             "--scheduler", cluster.scheduler_address, "--no-progress"])))
+        run.start()
+        deadline = time.time() + 300
+        while not (out / "good0.json").exists():
+            assert run.is_alive() and time.time() < deadline
+            time.sleep(0.05)
+        os.kill(pid, signal.SIGKILL)               # while it solves the next input
+        run.join(600)
+    assert codes == [0]
+    assert json.loads((out / "batch.json").read_text())["counts"] == {"ok": 3}
+    assert outputs(out) == outputs(out_serial)

@@ -59,3 +59,12 @@ def test_unknown_format_and_missing_array_messages(tmp_path):
     write_mesh(tmp_path / "d.vtu", meshio.Mesh(m.vertices, [("triangle", m.triangles)]))
     with pytest.raises(KeyError, match="no array 'G0'.*its arrays: none"):
         read_surface(tmp_path / "d.vtu").array("G0")
+
+
+def test_outputs_get_the_usual_permissions(tmp_path):
+    import os
+    umask = os.umask(0o022)
+    os.umask(umask)
+    m = shapes.disc(2)
+    write_mesh(tmp_path / "d.vtu", meshio.Mesh(m.vertices, [("triangle", m.triangles)]))
+    assert (tmp_path / "d.vtu").stat().st_mode & 0o777 == 0o666 & ~umask

@@ -23,6 +23,8 @@ from .mesh import Mesh, MeshError, _merge_coincident
 __all__ = ["Surface", "read_surface", "write_mesh", "write_text", "atomic_path", "file_format",
            "sha256", "FORMATS_WITH_DATA"]
 
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)
 # formats whose meshio writers keep (multi-component) point and cell data
 FORMATS_WITH_DATA = ("vtu", "vtk", "xdmf", "gmsh")
 # meshio writer options: inline XDMF data (no companion .h5 file to keep in step)
@@ -123,6 +125,7 @@ def atomic_path(path):
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix + ".part",
                                dir=path.parent)
     os.close(fd)
+    os.chmod(tmp, 0o666 & ~_UMASK)          # mkstemp makes 0600; outputs get the usual mode
     try:
         yield Path(tmp)
         os.replace(tmp, path)

@@ -33,13 +33,9 @@ from .discretize.dkt import apply_map, element_chart, point_map
 from .kernels.material import V_P, mat_prepare, new_state
 from .kernels.point import _reference_geometry
 
-POINT_FIELDS = ("displacement", "director", "thickness_stretch", "G0", "G1")
-CELL_FIELDS = ("principal_stretch", "principal_direction_1", "principal_direction_2",
-               "principal_direction_3", "first_piola_kirchhoff", "cauchy_stress", "energy_density")
-
 
 @njit(cache=True)
-def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, G1n, F_out, P_out, S_out, area_out):
+def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, F_out, P_out, S_out, area_out):
     """Per triangle: the quadrature means of F0, P and sigma at Z = 0."""
     mv, mm, mp = new_state()
     Xe = np.zeros((3, 3))
@@ -127,8 +123,7 @@ def fields(result):
     U = np.concatenate([result.r[:, None], result.derivatives], axis=1)
     F, P, S, area = np.zeros((ne, 3, 3)), np.zeros((ne, 3, 3)), np.zeros((ne, 3, 3)), np.zeros(ne)
     _fields(s.law.kind, s.law.psi, s.law.params, mesh.triangles, s.X, s.frames,
-            np.ascontiguousarray(U), s.bary, s.wts, result.y1, np.ascontiguousarray(G0),
-            np.ascontiguousarray(G1), F, P, S, area)
+            np.ascontiguousarray(U), s.bary, s.wts, result.y1, np.ascontiguousarray(G0), F, P, S, area)
     Lu, stretch, _ = np.linalg.svd(F)
     # deterministic signs of the directions: largest component positive
     big = np.take_along_axis(Lu, np.argmax(np.abs(Lu), axis=1)[:, None, :], axis=1)
