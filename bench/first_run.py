@@ -12,6 +12,7 @@ import json
 import os
 import platform
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -38,14 +39,19 @@ def machine():
 def run(cache_dir, out_dir):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
     t = time.perf_counter()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     p = subprocess.run([sys.executable, "-m", "shellritz.cli", "-o", str(out_dir), "-q"],
                        env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    # CPU time of the run: less sensitive than the wall time to other load on the machine
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if p.returncode != 0:
         raise SystemExit(f"shellritz failed ({p.returncode}):\n{p.stdout}\n{p.stderr}")
     kernels = float(re.search(r"kernels ready in ([\d.]+) s", p.stdout).group(1))
     solve = float(re.search(r"solved in ([\d.]+) s", p.stdout).group(1))
-    return {"wall_s": wall, "kernels_s": kernels, "solve_s": solve,
+    return {"wall_s": wall, "cpu_s": cpu, "kernels_compiled": "compiled now" in p.stdout,
+            "kernels_s": kernels, "solve_s": solve,
             "other_s": wall - kernels - solve, "stdout": p.stdout.splitlines()}
 
 
@@ -65,7 +71,7 @@ def main():
     for k in ("cold", "warm"):
         if k in out:
             r = out[k]
-            print(f"{k}: {r['wall_s']:.1f} s (kernels {r['kernels_s']:.1f} s, solve {r['solve_s']:.1f} s, "
+            print(f"{k}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU (kernels {r['kernels_s']:.1f} s, solve {r['solve_s']:.1f} s, "
                   f"start-up and output {r['other_s']:.1f} s)")
 
 
