@@ -161,7 +161,7 @@ def run_one(spec):
                 summary["input"]["sha256"] = sha256(path)
                 surf = scene.read(path)
             except Exception as exc:
-                raise _Failed(f"cannot read {path}: {exc}") from None
+                raise _Failed(str(exc) if str(path) in str(exc) else f"{path}: {exc}") from None
             mesh = surf.mesh
             summary["mesh"] = {"nodes": mesh.n_nodes, "triangles": mesh.n_triangles,
                                "boundary_loops": len(mesh.boundary_loops()),

@@ -99,8 +99,10 @@ def read_surface(path, normal=None):
         try:
             tm = trimesh.load(path, force="mesh", process=False)
         except Exception as exc:
-            raise MeshError(f"{path}: cannot read ({type(meshio_error).__name__}: {meshio_error}; "
-                            f"trimesh: {type(exc).__name__}: {exc})") from None
+            why = ("no parse" if isinstance(meshio_error, SystemExit)     # meshio prints, then exits
+                   else f"{type(meshio_error).__name__}: {meshio_error}")
+            raise MeshError(f"{path}: cannot read it (meshio: {why}; trimesh: "
+                            f"{type(exc).__name__}: {exc})") from None
         points = np.asarray(tm.vertices, dtype=np.float64)
         triangles = np.asarray(tm.faces)
         if not len(triangles):
