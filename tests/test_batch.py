@@ -48,7 +48,7 @@ def disc_with_growth(path, bend, grow=1.05):
 def make_inputs(folder, n_good=2):
     folder.mkdir(parents=True, exist_ok=True)
     for k in range(n_good):
-        disc_with_growth(folder / f"good{k}.vtu", bend=0.5 + 0.5 * k)
+        disc_with_growth(folder / f"good{k}.vtu", bend=0.4 + 0.2 * k)
     return folder
 
 

@@ -2,9 +2,9 @@
 serially, by local worker processes or on a Dask cluster (:func:`run_batch`).
 
 Every input is solved by the same function, :func:`run_one`, wherever it runs,
-with BLAS limited to one thread (threadpoolctl): the DKT assembly is bitwise
-the same on any number of Numba threads and SuperLU is sequential, so the
-results do not depend on how the batch was run.  ``run_one`` never raises for
+with BLAS (OpenBLAS, and MKL with its PARDISO) limited to one thread
+(threadpoolctl): the DKT assembly is bitwise the same on any number of Numba
+threads, so the results do not depend on how the batch was run.  ``run_one`` never raises for
 a bad input: it returns a summary with ``status = "failed"`` and the reason,
 and the batch goes on.  Outputs are written to temporary files and renamed
 (``meshdata.atomic_path``); the per-input summary ``STEM.json`` is written
@@ -145,6 +145,9 @@ def run_one(spec):
     if threads:
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     summary["threads"] = {"numba": numba.get_num_threads(), "blas": 1}
+    # load MKL (PARDISO) now, so that the BLAS limit below covers it too
+    from .linalg import pardiso_available
+    pardiso_available()
     caught = []
     try:
         with warnings.catch_warnings(record=True) as caught, threadpool_limits(1, user_api="blas"):
