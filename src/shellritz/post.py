@@ -1,24 +1,42 @@
-"""Output fields of a solved shell and mesh writing (meshio).
+"""Output fields of a solved shell and the result files.
 
-Per triangle (averaged over its quadrature points, at the middle surface
-Z = 0): principal stretches of the middle surface (two in-plane, from the
-metric r_a . r_b against R_a . R_b, and the normal stretch |y1|), the first
-Piola-Kirchhoff stress P = dWbar/dF at F0 = grad r + y1 (x) n (per unit
-reference area, MODEL.md section 4) and the Cauchy stress
-sigma = P F0^T / det F0.  Per node: displacement, the unit director
-y1/|y1| and the thickness stretch |y1| (area-weighted averages).
+Fields, as the point kernel defines them (MODEL.md sections 3-4), at the
+middle surface Z = 0:
+
+per node (point data)
+    ``displacement`` r - R; ``director`` y1 (eq:mm; the image of the unit
+    normal, so a material fibre across the thickness) and
+    ``thickness_stretch`` |y1|; ``G0``, ``G1`` the growth at the solved t
+    (9 components, row-major, global).  At a node: the direction of the
+    area-weighted mean of y1 over the quadrature points around it, with the
+    mean of |y1| as its length.
+per triangle (cell data, means over the quadrature points)
+    ``principal_stretch`` (3, descending): the singular values of the
+    deformation gradient F0 = grad r + y1 (x) n (total stretch, growth
+    included: uniform growth G gives the stretches of G), and
+    ``principal_direction_1..3`` the corresponding directions in the current
+    configuration (left singular vectors, sign fixed so that the largest
+    component is positive); ``first_piola_kirchhoff`` P = dWbar/dF at F0
+    (per unit reference area, Wbar = det G W(F G^-1)); ``cauchy_stress``
+    sigma = P F0^T / det F0; ``energy_density`` the element's energy L per
+    unit reference area (with the load potentials of its face tractions).
+
+On request (scene ``[output]``): the faces Z = +-h/2 of the deformed shell,
+x = r +- (h/2) y1 + (h^2/12) y2 (eq:y, thickness average r), as two
+surfaces, or the solid between them (wedge cells), and a PNG picture.
 """
 
 import numpy as np
 from numba import njit
 
 from .discretize.dkt import apply_map, element_chart, point_map
-from .kernels.material import M_AA, V_P, mat_prepare, new_state
+from .kernels.material import V_P, mat_prepare, new_state
 from .kernels.point import _reference_geometry
 
 
 @njit(cache=True)
-def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, stretch, P_out, S_out, area_out):
+def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, F_out, P_out, S_out, area_out):
+    """Per triangle: the quadrature means of F0, P and sigma at Z = 0."""
     mv, mm, mp = new_state()
     Xe = np.zeros((3, 3))
     Te = np.zeros((3, 3, 2))
@@ -41,8 +59,7 @@ def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, stretch, P_out,
                 bref[3 * i + 2, c] = T[nd, c, 1]
                 for s in range(3):
                     bcur[3 * i + s, c] = U[nd, s, c]
-        area = element_chart(Xe, Te, Q, gl, et, el)
-        area_out[e] = area
+        area_out[e] = element_chart(Xe, Te, Q, gl, et, el)
         wsum = 0.0
         for iq in range(bary.shape[0]):
             lam = bary[iq]
@@ -51,84 +68,154 @@ def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, stretch, P_out,
             apply_map(b, bcur, v)
             _reference_geometry(ref, E, Lam, dg, na, kap, gup)
             n = E[:, 2]
-            # F0 = r_a (x) g^a + y1 (x) n (global components)
+            # F0 = r_a (x) g^a + y1 (x) n (global components); G at Z = 0 is G0
             for i in range(3):
                 for j in range(3):
                     F[i, j] = v[i] * gup[0, j] + v[3 + i] * gup[1, j] + Y1[e, iq, i] * n[j]
                     G[i, j] = (lam[0] * G0n[tri[e, 0], i, j] + lam[1] * G0n[tri[e, 1], i, j]
                                + lam[2] * G0n[tri[e, 2], i, j])
             Gi = np.linalg.inv(G)
-            gdet = np.linalg.det(G)
             A = F @ Gi
             mat_prepare(kind, psi, params, A, mv, mm, mp)
-            PA = mv[V_P].reshape(3, 3)
-            P = gdet * PA @ Gi.T
+            P = np.linalg.det(G) * mv[V_P].reshape(3, 3) @ Gi.T
             sig = P @ F.T / np.linalg.det(F)
-            # in-plane stretches: eigenvalues of M_ref^-1 M_cur
-            m00 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-            m01 = v[0] * v[3] + v[1] * v[4] + v[2] * v[5]
-            m11 = v[3] * v[3] + v[4] * v[4] + v[5] * v[5]
-            r00 = ref[0] * ref[0] + ref[1] * ref[1] + ref[2] * ref[2]
-            r01 = ref[0] * ref[3] + ref[1] * ref[4] + ref[2] * ref[5]
-            r11 = ref[3] * ref[3] + ref[4] * ref[4] + ref[5] * ref[5]
-            dr = r00 * r11 - r01 * r01
-            a00 = (r11 * m00 - r01 * m01) / dr
-            a01 = (r11 * m01 - r01 * m11) / dr
-            a10 = (-r01 * m00 + r00 * m01) / dr
-            a11 = (-r01 * m01 + r00 * m11) / dr
-            tr = a00 + a11
-            dt = a00 * a11 - a01 * a10
-            disc = np.sqrt(max(tr * tr / 4 - dt, 0.0))
             w = wts[iq]
             wsum += w
-            stretch[e, 0] += w * np.sqrt(tr / 2 + disc)
-            stretch[e, 1] += w * np.sqrt(max(tr / 2 - disc, 0.0))
-            stretch[e, 2] += w * np.sqrt(Y1[e, iq, 0] ** 2 + Y1[e, iq, 1] ** 2 + Y1[e, iq, 2] ** 2)
             for i in range(3):
                 for j in range(3):
+                    F_out[e, i, j] += w * F[i, j]
                     P_out[e, i, j] += w * P[i, j]
                     S_out[e, i, j] += w * sig[i, j]
-        for k in range(3):
-            stretch[e, k] /= wsum
         for i in range(3):
             for j in range(3):
+                F_out[e, i, j] /= wsum
                 P_out[e, i, j] /= wsum
                 S_out[e, i, j] /= wsum
 
 
-def fields(result):
-    s = result.shell
-    ne = s.mesh.n_triangles
-    stretch = np.zeros((ne, 3))
-    P = np.zeros((ne, 3, 3))
-    S = np.zeros((ne, 3, 3))
-    area = np.zeros(ne)
-    G0, _ = s.growth_at(result.t if result.t is not None else 0.0)
-    _fields(s.law.kind, s.law.psi, s.law.params, s.mesh.triangles, s.X, s.frames,
-            np.ascontiguousarray(s.U), s.bary, s.wts, result.y1, np.ascontiguousarray(G0),
-            stretch, P, S, area)
-    # nodal director: area-weighted average of the element means
-    y1e = result.y1.mean(axis=1)
-    nodal = np.zeros((s.mesh.n_nodes, 3))
-    wsum = np.zeros(s.mesh.n_nodes)
+def _nodal(mesh, area, values):
+    """Area-weighted nodal averages of per-element values (m, 3)."""
+    out = np.zeros((mesh.n_nodes, 3))
+    wsum = np.zeros(mesh.n_nodes)
     for k in range(3):
-        np.add.at(nodal, s.mesh.triangles[:, k], area[:, None] * y1e)
-        np.add.at(wsum, s.mesh.triangles[:, k], area)
-    nodal /= wsum[:, None]
-    return {"stretch": stretch, "P": P, "cauchy": S, "director": nodal}
+        np.add.at(out, mesh.triangles[:, k], area[:, None] * values)
+        np.add.at(wsum, mesh.triangles[:, k], area)
+    return out / wsum[:, None]
+
+
+def _nodal_director(mesh, area, Y1):
+    """Nodal director and thickness stretch from the quadrature values y1
+    (m, nq, 3): the direction of the area-weighted mean of y1, and the mean
+    of |y1| as its length (averaging the vectors alone would shorten them
+    where the surface is curved)."""
+    length = _nodal(mesh, area, np.repeat(np.linalg.norm(Y1, axis=2).mean(axis=1)[:, None], 3, axis=1))[:, 0]
+    mean = _nodal(mesh, area, Y1.mean(axis=1))
+    return mean * (length / np.linalg.norm(mean, axis=1))[:, None], length
+
+
+def fields(result):
+    """Point and cell fields of a result (module docstring), as dicts."""
+    s = result.shell
+    mesh = s.mesh
+    ne = mesh.n_triangles
+    t = result.t if result.t is not None else 0.0
+    G0, G1 = s.growth_at(t)
+    U = np.concatenate([result.r[:, None], result.derivatives], axis=1)
+    F, P, S, area = np.zeros((ne, 3, 3)), np.zeros((ne, 3, 3)), np.zeros((ne, 3, 3)), np.zeros(ne)
+    _fields(s.law.kind, s.law.psi, s.law.params, mesh.triangles, s.X, s.frames,
+            np.ascontiguousarray(U), s.bary, s.wts, result.y1, np.ascontiguousarray(G0), F, P, S, area)
+    Lu, stretch, _ = np.linalg.svd(F)
+    # deterministic signs of the directions: largest component positive
+    big = np.take_along_axis(Lu, np.argmax(np.abs(Lu), axis=1)[:, None, :], axis=1)
+    Lu = Lu * np.sign(big)
+    director, stretch_n = _nodal_director(mesh, area, result.y1)
+    point = {"displacement": result.displacement, "director": director,
+             "thickness_stretch": stretch_n,
+             "G0": G0.reshape(-1, 9), "G1": G1.reshape(-1, 9)}
+    cell = {"principal_stretch": stretch,
+            "principal_direction_1": Lu[:, :, 0], "principal_direction_2": Lu[:, :, 1],
+            "principal_direction_3": Lu[:, :, 2],
+            "first_piola_kirchhoff": P.reshape(-1, 9), "cauchy_stress": S.reshape(-1, 9),
+            "energy_density": _element_energies(s, U) / area}
+    return point, cell
+
+
+def _element_energies(shell, U):
+    """Element energies at the state U (the shell's growth, loads and
+    prescribed values at its current t: those of a result just computed)."""
+    shell.evaluate(U.reshape(-1)[shell.free], 0)
+    return shell._Le.copy()
+
+
+def faces(result):
+    """Nodal positions of the faces Z = -h/2 and Z = +h/2 (eq:y)."""
+    s = result.shell
+    area = s.mesh.areas
+    y1, _ = _nodal_director(s.mesh, area, result.y1)
+    y2 = _nodal(s.mesh, area, result.y2.mean(axis=1))
+    h = s.h
+    mid = result.r + (h * h / 12.0) * y2
+    return mid - 0.5 * h * y1, mid + 0.5 * h * y1
+
+
+def result_mesh(result, with_data=True):
+    """The deformed middle surface as a meshio.Mesh with the fields."""
+    import meshio
+    tri = result.shell.mesh.triangles
+    if not with_data:
+        return meshio.Mesh(result.r, [("triangle", tri)])
+    point, cell = fields(result)
+    return meshio.Mesh(result.r, [("triangle", tri)], point_data=point,
+                       cell_data={k: [v] for k, v in cell.items()})
+
+
+def face_meshes(result):
+    """(bottom, top) faces as meshio meshes (positions only)."""
+    import meshio
+    tri = result.shell.mesh.triangles
+    bottom, top = faces(result)
+    # the bottom face's outward normal is -n: reverse its triangles
+    return (meshio.Mesh(bottom, [("triangle", tri[:, ::-1])]), meshio.Mesh(top, [("triangle", tri)]))
+
+
+def solid_mesh(result):
+    """The deformed shell as a solid: one wedge per triangle between the faces."""
+    import meshio
+    tri = result.shell.mesh.triangles
+    n = result.shell.mesh.n_nodes
+    bottom, top = faces(result)
+    return meshio.Mesh(np.vstack([bottom, top]), [("wedge", np.hstack([tri, tri + n]))])
 
 
 def write_result(result, path):
-    import meshio
-    f = fields(result)
-    s = result.shell
-    thick = np.linalg.norm(f["director"], axis=1)
-    point_data = {"displacement": result.displacement,
-                  "director": f["director"] / thick[:, None],
-                  "thickness_stretch": thick}
-    cell_data = {"principal_stretch": [f["stretch"]],
-                 "first_piola_kirchhoff": [f["P"].reshape(-1, 9)],
-                 "cauchy_stress": [f["cauchy"].reshape(-1, 9)]}
-    mesh = meshio.Mesh(result.r, [("triangle", s.mesh.triangles)], point_data=point_data,
-                       cell_data=cell_data)
-    mesh.write(str(path))
+    """Write the deformed mesh with fields (any meshio format by extension;
+    formats without data arrays get the geometry only)."""
+    from .meshdata import FORMATS_WITH_DATA, file_format, write_mesh
+    write_mesh(path, result_mesh(result, with_data=file_format(path) in FORMATS_WITH_DATA))
+
+
+def picture(result, path, title=None):
+    """A PNG of the deformed middle surface coloured by height (atomic)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .meshdata import atomic_path
+    r = result.r
+    fig = plt.figure(figsize=(7, 5.5))
+    ax = fig.add_subplot(projection="3d")
+    surf = ax.plot_trisurf(r[:, 0], r[:, 1], r[:, 2], triangles=result.shell.mesh.triangles,
+                           cmap="viridis", linewidth=0.1, edgecolor=(0, 0, 0, 0.15), antialiased=True)
+    fig.colorbar(surf, ax=ax, shrink=0.6, label="height z")
+    span = np.ptp(r, axis=0).max() / 2
+    c = 0.5 * (r.min(axis=0) + r.max(axis=0))
+    ax.set_xlim(c[0] - span, c[0] + span)
+    ax.set_ylim(c[1] - span, c[1] + span)
+    ax.set_zlim(c[2] - span, c[2] + span)
+    if title:
+        ax.set_title(title)
+    ax.view_init(elev=25, azim=-60)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)

@@ -212,6 +212,54 @@ class Shell(Solvable):
         self._add_bc(mask, values)
         return self
 
+    def remove_rigid_motions(self):
+        """Remove exactly the six rigid motions of a free body: statically
+        determinate 3-2-1 supports on three node positions, which carry no
+        force when the loads are self-equilibrated (growth, a pressure on a
+        closed surface), so they can never induce stress.  Returns the nodes
+        (A, B, C).
+
+        A, the node nearest the centroid, is pinned; B, a far node whose
+        direction from A is closest to a coordinate axis e_a, is held on the
+        line through A along e_a (its two other components); C, far from that
+        line and closest to a coordinate plane through A containing e_a (normal
+        e_c), is held in that plane (one component).  Global components are
+        enough for any mesh because these targets are *homogeneous*: every
+        configuration can be rotated and translated into them (A fixed, AB along
+        e_a, ABC in the plane -- a QR decomposition), so the constrained
+        equilibrium is the free one, moved rigidly, with zero reactions.  Holding
+        B and C at their reference components instead would not be: a shrinking
+        body could not reach them.  When AB is not exactly along e_a the body
+        turns by that angle (small: B is chosen best aligned) during the
+        continuation; prescribed motions are reached at t = 1.
+        """
+        X = self.X
+        D = X - X.mean(axis=0)
+        a = int(np.argmin(np.einsum("ij,ij->i", D, D)))
+        D = X - X[a]
+        dist = np.linalg.norm(D, axis=1)
+        far = dist >= 0.5 * dist.max()
+        align = np.where(far[:, None], np.abs(D) / np.where(far, dist, 1.0)[:, None], -1.0)
+        # best aligned; among equally well aligned nodes (1e-12) the farthest
+        score = np.round(align, 12) + 1e-13 * (dist / dist.max())[:, None]
+        b, ax = (int(i) for i in np.unravel_index(np.argmax(score), score.shape))
+        others = [k for k in range(3) if k != ax]
+        u = D[b] / dist[b]
+        perp = np.linalg.norm(D - np.outer(D @ u, u), axis=1)
+        far = perp >= 0.5 * perp.max()
+        offplane = np.where(far[:, None], np.abs(D[:, others]) / np.where(far, dist, 1.0)[:, None], np.inf)
+        score = np.round(offplane, 12) - 1e-13 * (perp / perp.max())[:, None]
+        c, k = (int(i) for i in np.unravel_index(np.argmin(score), score.shape))
+        normal = others[k]
+        self.pin([a])
+        target = X[b].copy()
+        target[others] = X[a, others]
+        self.pin([b], position=target, components="".join("xyz"[i] for i in others))
+        target = X[c].copy()
+        target[normal] = X[a, normal]
+        self.pin([c], position=target, components="xyz"[normal])
+        return a, b, c
+
     def simply_support(self, nodes):
         """Hinged edge: positions fixed and the derivative along the boundary
         tangent fixed (the conormal derivative is free); at corners both

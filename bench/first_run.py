@@ -1,0 +1,79 @@
+"""First run of the default scene on a fresh install: a new process, an empty
+Numba cache (NUMBA_CACHE_DIR pointed at a new temporary folder), the bare
+``shellritz`` command.  Records the wall time and the split the command
+prints (kernels compiled, solve) in bench/results/first_run.json.
+
+    python bench/first_run.py            # one cold run, then one warm run
+    python bench/first_run.py --quick    # the cold run only
+"""
+
+import argparse
+import json
+import os
+import platform
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def machine():
+    import numba
+    import numpy
+    import scipy
+    cpu = platform.processor()
+    try:
+        cpu = next(l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
+            "numba": numba.__version__, "numpy": numpy.__version__, "scipy": scipy.__version__,
+            "load_average_at_start": os.getloadavg()}
+
+
+def run(cache_dir, out_dir):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
+    t = time.perf_counter()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    p = subprocess.run([sys.executable, "-m", "shellritz.cli", "-o", str(out_dir), "-q"],
+                       env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    # CPU time of the run: less sensitive than the wall time to other load on the machine
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if p.returncode != 0:
+        raise SystemExit(f"shellritz failed ({p.returncode}):\n{p.stdout}\n{p.stderr}")
+    kernels = float(re.search(r"kernels ready in ([\d.]+) s", p.stdout).group(1))
+    solve = float(re.search(r"solved in ([\d.]+) s", p.stdout).group(1))
+    return {"wall_s": wall, "cpu_s": cpu, "kernels_compiled": "compiled now" in p.stdout,
+            "kernels_s": kernels, "solve_s": solve,
+            "other_s": wall - kernels - solve, "stdout": p.stdout.splitlines()}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="cold run only")
+    args = ap.parse_args()
+    out = {"machine": machine(), "target_s": 90}
+    with tempfile.TemporaryDirectory() as tmp:
+        cache, res = Path(tmp) / "numba-cache", Path(tmp) / "out"
+        out["cold"] = run(cache, res)
+        if not args.quick:
+            out["warm"] = run(cache, res)
+    out["machine"]["load_average_at_end"] = os.getloadavg()
+    (HERE / "results").mkdir(exist_ok=True)
+    (HERE / "results" / "first_run.json").write_text(json.dumps(out, indent=1))
+    for k in ("cold", "warm"):
+        if k in out:
+            r = out[k]
+            print(f"{k}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU (kernels {r['kernels_s']:.1f} s, solve {r['solve_s']:.1f} s, "
+                  f"start-up and output {r['other_s']:.1f} s)")
+
+
+if __name__ == "__main__":
+    main()
