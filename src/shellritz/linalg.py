@@ -475,7 +475,7 @@ def jacobi(K):
 def lower_matvec(K):
     """p -> K p for the symmetric K given by its lower triangle (CSR); p may
     be a block of vectors (n, k)."""
-    KT = K.T.tocsr()
+    KT = K.T                   # a CSC view, no copy
     diag = K.diagonal()
     return lambda p: K @ p + KT @ p - (diag * p.T).T
 

@@ -232,28 +232,19 @@ class StripScene(_Scene):
         return res, len(sh.free), X[on, 0], res.r[on, 0], res.r[on, 2], len(res.history.iterations)
 
 
-def leaf(rings=None, thickness=0.02, nu=0.4, growth=0.3, gradient=0.5):
-    """The default scene (``shellritz``): a growing leaf.  A flat disc of
-    radius 1 (``rings=None``: the shipped mesh ``meshes/disc.vtu``, 16 rings,
-    1 536 triangles; else ``shapes.disc(rings)``, about 6 rings^2 triangles),
-    compressible neo-Hookean, grows in its plane by ``1 + growth rho^2``; the
-    rim has more length than a flat disc can hold and buckles it into a saddle.
-    A small through-thickness gradient ``G1 = diag(gradient, -gradient, 0)``
-    picks the orientation.  The centre node is clamped (rigid motions only).
-    Returns the Shell, ready to solve."""
+def leaf(rings=None):
+    """The default scene (``shellritz``, the scene file ``meshes/leaf.toml``):
+    a growing leaf — a flat disc of radius 1 grown in its plane by
+    ``1 + 0.3 rho^2`` buckles into a saddle.  ``rings=None``: the file's mesh
+    (16 rings, 1 536 triangles); else the same scene on ``shapes.disc(rings)``
+    (about 6 rings^2 triangles; benchmarks).  Returns the Shell, ready to
+    solve."""
     from importlib.resources import files
-    from .mesh import Mesh
-    up = lambda X: np.tile([0.0, 0.0, 1.0], (len(X), 1))
-    mesh = (Mesh.read(files("shellritz.meshes") / "disc.vtu", normal=up) if rings is None
-            else shapes.disc(int(rings)))
-    X = mesh.vertices
-    G0 = np.zeros((mesh.n_nodes, 3, 3))
-    G0[:, 0, 0] = G0[:, 1, 1] = 1.0 + growth * (X[:, 0] ** 2 + X[:, 1] ** 2)
-    G0[:, 2, 2] = 1.0
-    shell = Shell(mesh, thickness=thickness, material=NeoHookean(1.0, nu=nu))
-    shell.set_growth(G0=G0, G1=np.diag([gradient, -gradient, 0.0]))
-    shell.clamp(mesh.nodes_where(lambda X: np.hypot(X[:, 0], X[:, 1]) < 1e-9))
-    return shell
+    from .meshdata import Surface
+    from .scenefile import load_scene
+    scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+    surf = scene.read() if rings is None else Surface(shapes.disc(int(rings)))
+    return scene.build(surf)[0]
 
 
 def invagination(thickness=0.1, nu=0.4, compression=0.4, extension=0.2, gradient=-1.0,

@@ -583,7 +583,7 @@ def _step_back(problem, saved, t, step, min_step, opts, history, what):
     if opts.verbose:
         print(f"  {what} failed: back to t = {t:.4f}, {what} -> {step:.4g}")
     if step < min_step:
-        raise SolveError(f"continuation ({what}s) failed beyond t = {t:.6f} (step below {min_step}); "
+        raise SolveError(f"continuation failed beyond t = {t:.6f} ({what} below {min_step}); "
                          "the last converged state is kept", last_t=t, history=history)
     return step
 
