@@ -281,6 +281,34 @@ class LineShell(Solvable):
         self._fix(self._end_node(end), [col], None if value is None else [value])
         return self
 
+    def fix_node(self, node, dofs, values=None):
+        """Fix DOFs of any node: dofs a sequence of "a", "a'", "b", "b'",
+        optionally moved to values (same length) at t = 1."""
+        names = ("a", "a'", "b", "b'")
+        if not 0 <= node < self.n_nodes:
+            raise ValueError(f"node {node} out of range (the curve has {self.n_nodes} nodes)")
+        bad = [d for d in dofs if d not in names]
+        if bad or not dofs:
+            raise ValueError(f"dofs {list(dofs)!r}: give a non-empty sequence of {', '.join(names)}")
+        if values is not None and len(values) != len(dofs):
+            raise ValueError(f"values: {len(values)} given for {len(dofs)} dofs")
+        self._fix(node, [names.index(d) for d in dofs], values)
+        return self
+
+    def end_reaction(self, end):
+        """Force (f_a, f_b) that the support exerts on the end at the current
+        state: the derivative of the total energy with respect to the end
+        position (a, b) (plane strain: per unit width; surface of revolution:
+        the resultant over the circle)."""
+        i = self._end_node(end)
+        self.evaluate(self.free_state(), 1)
+        g = np.zeros(4 * self.n_nodes)
+        np.add.at(g, self.elem_dofs[self.qelem], self._Gq)
+        g -= self._f
+        if self._p_t:
+            g -= self._p_t * self._volume(self.U, 1)[1]
+        return g[4 * i], g[4 * i + 2]
+
     def symmetry(self, end, plane):
         """Mirror symmetry at an end about the plane 'a' = const (fix a and b')
         or 'b' = const (fix b and a')."""
