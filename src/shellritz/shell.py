@@ -599,10 +599,8 @@ class Shell(Solvable):
             return B.reshape(9 * n, 6)
         return 9, self.free, 9 * n, rigid_modes
 
-    def monitor(self):
-        """Positions of the monitored nodes (solve(monitor=...))."""
-        nodes = getattr(self, "_monitor_nodes", None)
-        return self.U[nodes, 0] if nodes is not None else np.zeros(0)
+    def _node_positions(self, nodes):
+        return self.U[nodes, 0]
 
     # ------------------------------------------------------------------ solve
     def _describe(self):

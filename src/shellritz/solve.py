@@ -84,6 +84,7 @@ class SolverOptions:
     arc_max_steps: int = 400    # arc length: path steps before giving up
     arc_ds: float = None        # arc length: first step (default: 1/steps in t)
     arc_max_ds: float = None    # arc length: largest step (default: 4x the first)
+    stop: object = None         # arc length: callable(path point dict) -> reason to stop or None
 
     def __post_init__(self):
         for name, allowed in (("globalization", GLOBALIZATIONS), ("path", PATHS),
@@ -160,6 +161,20 @@ class _Linear:
         self.amg_failures = 0
         self.rigid = None          # free rigid motions (orthonormal columns) or None
         self.project = None
+
+    def worth_factorizing(self, last_cg_its):
+        """Factorize the new Hessian, or let CG run preconditioned by the last
+        positive definite factorization?  Refactorize when the CG iterations
+        of the last step cost more than half a factorization, counted in
+        floating point operations (deterministic: the same run gives the same
+        result).  Small problems: every step, the exact Newton step; large
+        ones: a factorization is reused while it preconditions well."""
+        if self.solver is None or not self.solver.direct or self.solver.preconditioner() is None:
+            return True
+        if last_cg_its is None:
+            return True
+        factor, iteration = self.solver.operation_counts()
+        return last_cg_its * iteration >= 0.5 * factor
 
     def factorize(self, K):
         """Factorize (or prepare the preconditioner for) K; returns the
@@ -246,6 +261,7 @@ def minimize(problem, t, opts, history, g_ref, lin):
     gnorm_prev, eta = None, 0.1
     first_norm = None           # size of the first step (trust region collapse test)
     last_accepted = True        # the last trust-region step was accepted
+    last_cg_its = None
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= opts.xtol * size:
@@ -258,7 +274,11 @@ def minimize(problem, t, opts, history, g_ref, lin):
             return None
         setup = 0.0
         if not factorized:
-            negative, setup = lin.factorize(K)
+            if lin.worth_factorizing(last_cg_its):
+                negative, setup = lin.factorize(K)
+            else:
+                lin.solver.stale()          # CG on K, preconditioned by the last PD factor
+                negative = None
             factorized = True
         exact = lin.solver.current_is_positive_definite()
         matvec = lower_matvec(K)
@@ -284,6 +304,7 @@ def minimize(problem, t, opts, history, g_ref, lin):
                 M = jacobi(K)
             p, info = steihaug_cg(matvec, g, M, r, eta, opts.max_cg, lin.project)
         solve_s = time.perf_counter() - ts
+        last_cg_its = info["iterations"]
         if not lin.direct:
             rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
             setup += rebuilt
@@ -601,41 +622,86 @@ def _parameter_derivative(problem, x, t, delta=1e-6):
     return (gp - gm) / (2 * delta)
 
 
+ARC_MAX_TURN = 0.8     # arc length: smallest cosine between the tangents and chord of a step
+
+
 def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
     """Pseudo-arc-length continuation (Riks 1979: corrector in the plane
-    normal to the tangent) in (x, t) with the metric |dx|^2 / L^2 + dt^2,
-    L the problem size; bordered systems by two solves with one
-    factorization per corrector iteration.  Passes limit points of t; ends
-    at t = 1 by a Newton solve at fixed t from the secant between the path
-    points around it.  Equilibria on the way may be unstable (recorded)."""
-    L2 = problem.size_scale() ** 2
+    normal to the tangent) in (x, t) with the metric |dx|^2 / (n L^2) + dt^2
+    (n free DOFs, L the problem size: the root mean square relative motion,
+    independent of the mesh); bordered systems by two solves with one
+    factorization per corrector iteration.  Passes limit points of t; ends at
+    t = 1 by a Newton solve at fixed t from the secant between the path points
+    around it, or where ``opts.stop`` says.  Equilibria on the way may be
+    unstable (their inertia is recorded).  A step is redone with half the
+    length when its corrector fails or leaves the neighbourhood of the
+    predictor, the inertia changes by more than one, or the path turns over
+    the step (tangents at its ends and the chord differ by more than
+    ARC_MAX_TURN: a jump across a fold or to another branch)."""
+    L2 = problem.size_scale() ** 2 * max(len(problem.free_state()), 1)
     ds = opts.arc_ds or 1.0 / max(1, steps)
     ds_max = opts.arc_max_ds or 4 * ds
     x = problem.free_state()
-    tau_prev = None
-    for _ in range(opts.arc_max_steps):
-        # inertia and tangent at the converged point: K dx = -dg/dt, dt = 1, normalized
-        E, _, K = problem.evaluate(x, 2)
-        negative, _ = lin.factorize(K)
-        if not lin.direct:
-            raise SolveError("arc length needs a direct linear solver (linear='pardiso' or 'superlu')",
-                             last_t=t, history=history)
-        _record_path(problem, history, t, E, negative)
-        if opts.verbose and len(history.path) > 1:
-            print(f"  arc t = {t:.5f} (ds = {ds:.4g}, {negative} negative eigenvalues)", flush=True)
+    E, _, K = problem.evaluate(x, 2)
+    negative, _ = lin.factorize(K)
+    del K
+    if not lin.direct:
+        raise SolveError("arc length needs a direct linear solver (linear='pardiso' or 'superlu')",
+                         last_t=t, history=history)
+
+    def tangent(x, t, previous, negative):
+        """Unit tangent at a converged, factorized point (K dx = -dg/dt dt),
+        oriented along the travel; with its force scale |dg/dt|."""
         gt = _parameter_derivative(problem, x, t)
-        # force scale of the path: the loads, or what the parameter does to the
-        # gradient (prescribed motions: no loads at all)
-        g_scale = max(g_ref, problem.load_scale(), np.linalg.norm(gt))
         dx = lin.solver.solve(-gt)
         norm = np.sqrt(dx @ dx / L2 + 1.0)
-        tau_x, tau_t = dx / norm, 1.0 / norm
-        if tau_prev is not None and (tau_x @ tau_prev[0] / L2 + tau_t * tau_prev[1]) < 0:
-            tau_x, tau_t = -tau_x, -tau_t          # keep the direction of travel
+        tau = (dx / norm, 1.0 / norm, negative)
+        if previous is not None:
+            # continuity with the last tangent; past a sharp limit point (the
+            # inertia changes parity: det K and with it dt change sign) the
+            # determinant decides
+            cos = tau[0] @ previous[0] / L2 + tau[1] * previous[1]
+            flip = cos < 0
+            if (negative - previous[2]) % 2 and abs(cos) < 0.9:
+                flip = previous[1] > 0
+            if flip:
+                tau = (-tau[0], -tau[1], negative)
+        return tau, np.linalg.norm(gt)
+
+    tau, gt_norm = tangent(x, t, None, negative)
+    for _ in range(opts.arc_max_steps):
+        _record_path(problem, history, t, E, negative)
+        reason = opts.stop(history.path[-1]) if opts.stop is not None else None
+        if reason:
+            history.notes.append(f"arc length stopped at t = {t:.6g}: {reason}")
+            history.stable, history.unstable_modes = negative == 0, negative
+            return history
+        if opts.verbose and len(history.path) > 1:
+            print(f"  arc t = {t:.5f} (ds = {ds:.4g}, {negative} negative eigenvalues)", flush=True)
+        # force scale of the path: the loads, or what the parameter does to the
+        # gradient (prescribed motions: no loads at all)
+        g_scale = max(g_ref, problem.load_scale(), gt_norm)
         while True:
             saved = problem.save_point()
-            ok, xn, tn, its = _riks_corrector(problem, x, t, tau_x, tau_t, ds, L2, opts, history,
+            ok, xn, tn, its = _riks_corrector(problem, x, t, tau[0], tau[1], ds, L2, opts, history,
                                               lin, g_scale)
+            smallest = ds <= 4 * min_ds        # accept what the corrector finds
+            if ok:
+                En, _, Kn = problem.evaluate(xn, 2)
+                neg_new, _ = lin.factorize(Kn)
+                del Kn
+                ok = neg_new is not None and (abs(neg_new - negative) <= 1 or smallest)
+            if ok:
+                # the path turns little over the step: the tangents at both
+                # ends and the secant between them agree (else the step has
+                # jumped across a fold or to another branch)
+                tau_new, gt_new = tangent(xn, tn, tau, neg_new)
+                dx, dt = xn - x, tn - t
+                chord = np.sqrt(dx @ dx / L2 + dt * dt)
+                turns = [tau_new[0] @ tau[0] / L2 + tau_new[1] * tau[1],
+                         (dx @ tau[0] / L2 + dt * tau[1]) / chord,
+                         (dx @ tau_new[0] / L2 + dt * tau_new[1]) / chord]
+                ok = min(turns) >= ARC_MAX_TURN or smallest
             if ok:
                 break
             ds = _step_back(problem, saved, t, ds, min_ds, opts, history, "arc step")
@@ -651,10 +717,10 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
             E, _, _ = problem.evaluate(problem.free_state(), 0)
             _record_path(problem, history, 1.0, E, history.unstable_modes)
             return history
-        tau_prev = (tau_x, tau_t)
-        x, t = xn, tn
+        x, t, E, negative, tau, gt_norm = xn, tn, En, neg_new, tau_new, gt_new
         history.steps.append((t, True))
         ds = min(ds * 1.5, ds_max) if its <= 4 else (ds * 0.7 if its > 8 else ds)
+    _record_path(problem, history, t, E, negative)
     raise SolveError(f"arc length: t = 1 not reached in {opts.arc_max_steps} steps (t = {t:.6f})",
                      last_t=t, history=history)
 
@@ -677,6 +743,11 @@ def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g
             return False, x, t, it
         gnorm = np.linalg.norm(g)
         c = (x - x0) @ tau_x / L2 + (t - t0) * tau_t - ds
+        # the corrector stays near the predictor (else it has jumped to
+        # another branch crossing the plane: a smaller step is needed)
+        far = np.sqrt((x - x0) @ (x - x0) / L2 + (t - t0) ** 2) > 3.0 * ds
+        if far:
+            return False, x, t, it
         if (gnorm <= opts.rtol * g_scale or last <= opts.xtol * size) and abs(c) <= 1e-10 * ds:
             return True, x, t, it
         negative, setup = lin.factorize(K)
@@ -710,12 +781,12 @@ class Solvable:
 
     def solve(self, steps=1, verbose=True, rtol=1e-9, max_iter=40, min_dt=1e-4, linear="auto",
               globalization="trust-region", path="load", stability="auto", escape=True,
-              monitor=None):
+              monitor=None, arc_max_steps=400, arc_ds=None, arc_max_ds=None, stop=None):
         """Equilibrium at t = 1 by continuation from the reference (t = 0).
 
         steps: initial number of continuation steps (adapted: halved on
         failure, doubled after easy steps; arc length: the first arc step is
-        1/steps in t); rtol: relative gradient tolerance; max_iter: Newton
+        1/steps); rtol: relative gradient tolerance; max_iter: Newton
         iterations per step; min_dt: smallest step before giving up.
         linear: "auto" | "pardiso" | "superlu" | "amg" (linalg.py);
         globalization: "trust-region" | "line-search";
@@ -724,14 +795,20 @@ class Solvable:
         stability: "auto" | "inertia" | "eigen" | "off" (see SolverOptions);
         escape: leave unstable equilibria along their most unstable mode;
         monitor: node indices whose positions are recorded along an
-        arc-length path.
+        arc-length path, or a callable(engine) -> numbers;
+        arc_max_steps, arc_ds, arc_max_ds: arc length step count limit, first
+        and largest step (root mean square relative motion and t combined);
+        stop: callable(path point) -> reason (str) to end an arc-length path
+        there, or None to go on.
         Raises SolveError (with ``.result``, the last converged state) on failure.
         """
         opts = SolverOptions(rtol=rtol, max_iter=max_iter, verbose=verbose, linear=linear,
                              globalization=globalization, path=path, stability=stability,
-                             escape=escape)
+                             escape=escape, arc_max_steps=arc_max_steps, arc_ds=arc_ds,
+                             arc_max_ds=arc_max_ds, stop=stop)
         self._setup()
-        self._monitor_nodes = None if monitor is None else np.atleast_1d(np.asarray(monitor, int))
+        self._monitor = (monitor if monitor is None or callable(monitor)
+                         else np.atleast_1d(np.asarray(monitor, int)))
         t0 = time.perf_counter()
         if verbose:
             print(self._describe(), flush=True)
@@ -740,4 +817,12 @@ class Solvable:
         except SolveError as exc:
             exc.result = self._result(exc.history, time.perf_counter() - t0, False, exc.last_t)
             raise
-        return self._result(history, time.perf_counter() - t0, True, 1.0)
+        return self._result(history, time.perf_counter() - t0, True, history.steps[-1][0])
+
+    def monitor(self):
+        """The monitored values (solve(monitor=...)): positions of nodes, or
+        what the callable returns."""
+        m = getattr(self, "_monitor", None)
+        if m is None:
+            return np.zeros(0)
+        return m(self) if callable(m) else self._node_positions(m)

@@ -475,10 +475,9 @@ class LineShell(Solvable):
         n = self.n_nodes
         return 4, self.free, 4 * n, lambda: self._rigid_modes(self.U.reshape(n, 4))
 
-    def monitor(self):
-        """(a, b) of the monitored nodes (solve(monitor=...))."""
-        nodes = getattr(self, "_monitor_nodes", None)
-        return self.U.reshape(-1, 4)[nodes][:, [0, 2]] if nodes is not None else np.zeros(0)
+    def _node_positions(self, nodes):
+        """(a, b) of the nodes."""
+        return self.U.reshape(-1, 4)[nodes][:, [0, 2]]
 
     def _describe(self):
         return (f"shellritz: {type(self).__name__}, {self.n_elements} elements, "
