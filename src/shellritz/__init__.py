@@ -1,5 +1,13 @@
 """shellritz: equilibrium shapes of thin growing hyperelastic shells."""
 
+import os
+
+# OpenMP threads (Numba's parallel assembly, MKL's PARDISO) sleep when idle
+# instead of spinning: spinning threads of one runtime slow the other's, and
+# any other load of the machine, by factors of 2-8 (README "Threads").  Set
+# OMP_WAIT_POLICY before importing shellritz to choose otherwise.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 from .materials import (CubicStretch, InvariantLaw, LinearIsotropic, NeoHookean,
                         PowerLawHardening, StVenantKirchhoff, invariant_law_from_sympy)
 from .mesh import Mesh, MeshError

@@ -50,7 +50,24 @@ class LinearSolverError(RuntimeError):
     """A linear solve could not be done (message says which method and why)."""
 
 
+def _locate_mkl():
+    """Tell pypardiso where MKL's runtime library is, if it is where pip puts
+    it: pypardiso otherwise globs the whole environment recursively when it
+    is imported (2 s, on every run)."""
+    import glob
+    import os
+    import sys
+    if "PYPARDISO_MKL_RT" in os.environ:
+        return
+    for pattern in ("lib/libmkl_rt.so*", "lib/libmkl_rt*.dylib", "Library/bin/mkl_rt*.dll"):
+        found = sorted(glob.glob(os.path.join(sys.prefix, pattern)), key=len)
+        if found:
+            os.environ["PYPARDISO_MKL_RT"] = found[0]
+            return
+
+
 def pardiso_available():
+    _locate_mkl()
     try:
         import pypardiso  # noqa: F401
     except (ImportError, OSError):
@@ -87,11 +104,10 @@ class _PardisoFactor:
 
     def __init__(self, upper_pattern):
         import os
+        _locate_mkl()
         import pypardiso
         self._ps = ps = pypardiso.PyPardisoSolver(mtype=-2)     # real symmetric indefinite
-        # pypardiso looks for MKL by a recursive search of the environment
-        # (1 s here) unless told where it is: tell it for the next handles
-        os.environ.setdefault("PYPARDISO_MKL_RT", ps.libmkl._name)
+        os.environ.setdefault("PYPARDISO_MKL_RT", ps.libmkl._name)   # found elsewhere: keep it
         ps.set_iparm(1, 1)         # use the iparm values below, not the defaults
         ps.set_iparm(2, 2)         # METIS nested dissection ordering
         ps.set_iparm(10, 13)       # pivot perturbation 1e-13 (1e-8 by default: inaccurate solves

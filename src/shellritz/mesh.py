@@ -225,36 +225,25 @@ class Mesh:
         self.boundary_edge_triangles = bhe // 3
 
     def _check_vertex_fans(self):
-        """Each vertex's triangles must form one edge-connected fan."""
-        tri = self.triangles
+        """Each vertex's triangles must form one edge-connected fan: the link
+        graph of every vertex (its neighbours, joined across each of its
+        triangles) is connected.  All links at once, as one sparse graph whose
+        nodes are the (vertex, neighbour) pairs."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        tri = self.triangles.astype(np.int64)
         n = len(self.vertices)
-        # for every corner: the two other vertices; connectivity of the link graph
-        corners_v = tri.ravel()
-        links = np.stack([np.roll(tri, -1, axis=1).ravel(), np.roll(tri, -2, axis=1).ravel()], axis=1)
-        order = np.argsort(corners_v, kind="stable")
-        starts = np.searchsorted(corners_v[order], np.arange(n + 1))
-        bad = []
-        for v in range(n):
-            lk = links[order[starts[v]:starts[v + 1]]]
-            if len(lk) <= 1:
-                continue
-            # union-find over the link vertices
-            parent = {}
-
-            def find(a):
-                while parent[a] != a:
-                    parent[a] = parent[parent[a]]
-                    a = parent[a]
-                return a
-            for a, b in lk:
-                parent.setdefault(a, a)
-                parent.setdefault(b, b)
-                ra, rb = find(a), find(b)
-                if ra != rb:
-                    parent[ra] = rb
-            if len({find(a) for a in parent}) > 1:
-                bad.append(v)
-        if bad:
+        corner = tri.ravel()
+        a = np.roll(tri, -1, axis=1).ravel()
+        b = np.roll(tri, -2, axis=1).ravel()
+        keys, inv = np.unique(np.r_[corner * n + a, corner * n + b], return_inverse=True)
+        m = len(corner)
+        graph = coo_matrix((np.ones(m), (inv[:m], inv[m:])), shape=(len(keys), len(keys)))
+        _, label = connected_components(graph, directed=False)
+        owner = keys // n
+        fans = np.bincount(np.unique(owner * len(keys) + label) // len(keys), minlength=n)
+        bad = np.where(fans > 1)[0]
+        if len(bad):
             raise MeshError(f"non-manifold vertices {_list(bad)}: their triangles form more than one fan")
 
     # -- node selections ----------------------------------------------------

@@ -159,11 +159,16 @@ def _material(table):
 
 
 def _solver_keys():
-    """Keyword arguments of Shell.solve a scene may set (verbosity is the
-    command line's)."""
+    """Options of Shell.solve a scene may set, with their defaults: the
+    continuation's (steps, min_dt) and the solver's (solve.SolverOptions),
+    minus the verbosity (the command line's) and the callables."""
+    from dataclasses import fields
+    from .solve import SolverOptions
     sig = inspect.signature(Shell.solve)
-    return {name: p.default for name, p in sig.parameters.items()
-            if name not in ("self", "verbose") and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    keys = {name: p.default for name, p in sig.parameters.items()
+            if name not in ("self", "verbose", "monitor") and p.default is not p.empty}
+    keys.update({f.name: f.default for f in fields(SolverOptions) if f.name not in ("verbose", "stop")})
+    return keys
 
 
 def _solver(table):

@@ -122,12 +122,12 @@ def hemisphere(nphi, ntheta, radius=1.0, hole_deg=18.0, phi=(0.0, 2 * np.pi), pa
 def disc(nr, radius=1.0, perturb=0.0, seed=0):
     """Flat disc (normal +z): rings of 6 k nodes, Delaunay triangulated."""
     from scipy.spatial import Delaunay
-    pts = [np.zeros(2)]
+    pts = [np.zeros((1, 2))]
     for k in range(1, nr + 1):
         m = 6 * k
         a = 2 * np.pi * (np.arange(m) + 0.5 * (k % 2)) / m
-        pts += list(radius * k / nr * np.c_[np.cos(a), np.sin(a)])
-    uv = np.array(pts)
+        pts.append(radius * k / nr * np.c_[np.cos(a), np.sin(a)])
+    uv = np.concatenate(pts)
     interior = np.linalg.norm(uv, axis=1) < radius * (1 - 1e-9)
     uv = _perturb(uv, interior, perturb, radius / nr, seed)
     T = Delaunay(uv).simplices

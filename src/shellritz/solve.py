@@ -34,7 +34,7 @@ default, left along its most unstable mode to a stable state.
 """
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -81,6 +81,7 @@ class SolverOptions:
     armijo: float = 1e-4
     min_alpha: float = 1e-8
     max_cg: int = 300           # conjugate-gradient iterations per Newton step
+    watchdog: int = 4           # full Newton steps that may go uphill in energy (0: monotone)
     arc_max_steps: int = 400    # arc length: path steps before giving up
     arc_ds: float = None        # arc length: first step (default: 1/steps in t)
     arc_max_ds: float = None    # arc length: largest step (default: 4x the first)
@@ -114,6 +115,7 @@ class Iteration:
     setup_s: float              # factorization / AMG set-up time
     solve_s: float              # Krylov solve time
     seconds: float              # whole iteration (assembly included)
+    uphill: bool = False        # a full Newton step on the watchdog's probation (energy above its start)
 
 
 @dataclass
@@ -122,7 +124,9 @@ class SolveHistory:
     steps: list = field(default_factory=list)     # (t, converged)
     stable: bool = True         # the last converged state is stable (None: not assessed)
     unstable_modes: int = 0     # negative eigenvalues of its Hessian (None: not known)
-    lowest_eigenvalues: list = field(default_factory=list)   # with stability="eigen"
+    lowest_eigenvalues: list = field(default_factory=list)   # unstable states, or stability="eigen"
+    modes: object = None        # unstable states: the eigenvectors of the negative eigenvalues
+    #                             (columns, free DOFs; set_free_state(x + a * mode) perturbs along one)
     escapes: list = field(default_factory=list)   # dicts: t, negative, eigenvalue, amplitude
     notes: list = field(default_factory=list)     # fallbacks, warnings
     path: list = field(default_factory=list)      # arc length: dicts t, energy, negative, monitor
@@ -262,10 +266,21 @@ def minimize(problem, t, opts, history, g_ref, lin):
     first_norm = None           # size of the first step (trust region collapse test)
     last_accepted = True        # the last trust-region step was accepted
     last_cg_its = None
+    # watchdog (Chamberlain et al. 1982): full Newton steps are taken even
+    # uphill in energy (a large rotation predicted by the linearization
+    # stretches the membrane: the step overshoots in energy but lands in the
+    # basin of the solution), provided that within opts.watchdog steps the
+    # energy falls below that of the last monotone point, else the iteration
+    # returns there and globalizes (once per call)
+    watch = None                # the last monotone point while on probation
+    watch_spent = opts.watchdog <= 0
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= opts.xtol * size:
-            return K
+            if watch is None or E < watch["E"]:
+                return K
+            x, E, g, K, gnorm = _back_to(problem, watch)     # an equilibrium above the start
+            watch, watch_spent, factorized, last_step = None, True, False, np.inf
         stalled = (len(gnorms) >= 8 and gnorm > 0.5 * gnorms[-7]
                    and energies[-7] - E <= 1e-6 * max(problem.energy_magnitude(), abs(E)))
         if it == opts.max_iter or stalled:
@@ -316,8 +331,42 @@ def minimize(problem, t, opts, history, g_ref, lin):
                 setup += more
                 continue
         newton_step = exact and info["reason"] == "converged"
-        if newton_step and np.abs(p).max() <= opts.xtol * size:
+        if newton_step and np.abs(p).max() <= opts.xtol * size and watch is None:
             return K                # the Newton correction is at round-off
+        if watch is not None or (newton_step and not watch_spent):
+            trial = _watchdog_trial(problem, x, p, newton_step, g, matvec, noise(E))
+            if trial is None and watch is not None:        # off the probation: back
+                x, E, g, K, gnorm = _back_to(problem, watch)
+                watch, watch_spent, factorized = None, True, False
+                continue
+            if trial is not None:
+                if watch is None and trial[0] >= E:
+                    watch = dict(saved=problem.save_point(), x=x, E=E, g=g, K=K, gnorm=gnorm,
+                                 steps=0, predicted=-(g @ p + 0.5 * (p @ matvec(p))))
+                x = x + p
+                problem.set_free_state(x)
+                history.iterations.append(Iteration(t, it, trial[0], np.linalg.norm(trial[1]),
+                                                    info["norm_M"], radius if trust else np.nan, True,
+                                                    negative, info["iterations"], info["reason"],
+                                                    lin.solver.name,
+                                                    setup, solve_s, time.perf_counter() - t0,
+                                                    uphill=watch is not None))
+                E, g, K = trial
+                gnorm_prev, gnorm = gnorm, np.linalg.norm(g)
+                gnorms.append(gnorm)
+                energies.append(E)
+                factorized, last_step = False, np.abs(p).max()
+                if watch is not None:
+                    watch["steps"] += 1
+                    if E <= watch["E"] - 0.1 * watch["predicted"]:
+                        watch = None                      # below the start: monotone again
+                    elif watch["steps"] > opts.watchdog:
+                        x, E, g, K, gnorm = _back_to(problem, watch)
+                        watch, watch_spent, last_step = None, True, np.inf
+                if opts.verbose:
+                    print(f"    t={t:.4f} it={it:2d}  E={E: .10e}  |g|={gnorm:.3e}  full Newton step"
+                          + (" (watchdog)" if watch is not None else ""), flush=True)
+                continue
         if trust and newton_step and info["norm_M"] > radius:
             p *= radius / info["norm_M"]           # scaled Newton step on the boundary
             info.update(norm_M=radius, reason="boundary")
@@ -398,6 +447,26 @@ def minimize(problem, t, opts, history, g_ref, lin):
     return None
 
 
+def _watchdog_trial(problem, x, p, newton_step, g, matvec, noise):
+    """(E, g, K) at x + p for a full Newton step of significant size, or
+    None (not a Newton step, at round-off, or not admissible)."""
+    if not newton_step or -(g @ p + 0.5 * (p @ matvec(p))) <= noise:
+        return None
+    try:
+        trial = problem.evaluate(x + p, 2)
+    except EvaluationError:
+        return None
+    if not (np.isfinite(trial[0]) and np.all(np.isfinite(trial[1]))):
+        return None
+    return trial
+
+
+def _back_to(problem, watch):
+    """Restore the watchdog's monotone point: (x, E, g, K, |g|)."""
+    problem.restore_point(watch["saved"])
+    return watch["x"], watch["E"], watch["g"], watch["K"], watch["gnorm"]
+
+
 def _trust_trial(problem, x, p, E, gnorm, predicted, noise, with_hessian):
     """Evaluate the trust-region step x + p: (accepted, new energy or None,
     (E, g, K) at x + p or None).  ``with_hessian``: evaluate the Hessian
@@ -467,6 +536,7 @@ def assess_stability(problem, K, opts, history, lin, t):
     if K.shape[0] == 0:
         return None
     negative, _ = lin.factorize(K)      # inertia (direct); AMG: preconditioner set-up
+    history.modes = None
     mode = opts.stability
     if mode == "auto":
         mode = "inertia" if lin.direct else "off"
@@ -474,7 +544,7 @@ def assess_stability(problem, K, opts, history, lin, t):
         history.stable, history.unstable_modes = None, None
         return None
     vec = None
-    if mode == "eigen" or negative is None or (negative and opts.escape):
+    if mode == "eigen" or negative is None or negative:
         count = 3 if negative is None else max(negative, 1) + 1
         w, V = lowest_eigenpairs(lin, K, min(count, 12))
         history.lowest_eigenvalues = [float(v) for v in w]
@@ -486,6 +556,7 @@ def assess_stability(problem, K, opts, history, lin, t):
             negative = really
         if negative and w[0] < -zero:
             vec = V[:, 0]
+            history.modes = V[:, w < -zero]
     history.stable = negative == 0
     history.unstable_modes = negative
     return vec
@@ -779,33 +850,34 @@ class Solvable:
     problem protocol above and ``_setup()``, ``_describe()`` (one line) and
     ``_result(history, wall_s, converged, t)``."""
 
-    def solve(self, steps=1, verbose=True, rtol=1e-9, max_iter=40, min_dt=1e-4, linear="auto",
-              globalization="trust-region", path="load", stability="auto", escape=True,
-              monitor=None, arc_max_steps=400, arc_ds=None, arc_max_ds=None, stop=None):
+    def solve(self, steps=1, verbose=True, min_dt=1e-4, monitor=None, **options):
         """Equilibrium at t = 1 by continuation from the reference (t = 0).
 
         steps: initial number of continuation steps (adapted: halved on
         failure, doubled after easy steps; arc length: the first arc step is
-        1/steps); rtol: relative gradient tolerance; max_iter: Newton
-        iterations per step; min_dt: smallest step before giving up.
-        linear: "auto" | "pardiso" | "superlu" | "amg" (linalg.py);
-        globalization: "trust-region" | "line-search";
-        path: "load" | "arclength" (passes limit points; the path is in
-        ``result.history.path``, ``history.write_path(csv)``);
-        stability: "auto" | "inertia" | "eigen" | "off" (see SolverOptions);
-        escape: leave unstable equilibria along their most unstable mode;
-        monitor: node indices whose positions are recorded along an
-        arc-length path, or a callable(engine) -> numbers;
-        arc_max_steps, arc_ds, arc_max_ds: arc length step count limit, first
-        and largest step (root mean square relative motion and t combined);
-        stop: callable(path point) -> reason (str) to end an arc-length path
-        there, or None to go on.
+        1/steps); min_dt: smallest step before giving up; monitor: node
+        indices whose positions are recorded along an arc-length path, or a
+        callable(engine) -> numbers.  Solver options (SolverOptions, with
+        their defaults and meaning): rtol (relative gradient tolerance),
+        max_iter (Newton iterations per step), linear ("auto" | "pardiso" |
+        "superlu" | "amg", linalg.py), globalization ("trust-region" |
+        "line-search"), watchdog (full Newton steps allowed uphill), path
+        ("load" | "arclength": passes limit points, the path is in
+        ``result.history.path`` and ``history.write_path(csv)``), stability
+        ("auto" | "inertia" | "eigen" | "off"), escape (leave unstable
+        equilibria along their most unstable mode), arc_max_steps, arc_ds,
+        arc_max_ds (arc length: step count limit, first and largest step, in
+        root mean square relative motion and t combined), stop
+        (callable(path point) -> reason (str) to end an arc-length path there,
+        or None), max_cg, xtol, ftol, armijo, min_alpha, max_escapes.
         Raises SolveError (with ``.result``, the last converged state) on failure.
         """
-        opts = SolverOptions(rtol=rtol, max_iter=max_iter, verbose=verbose, linear=linear,
-                             globalization=globalization, path=path, stability=stability,
-                             escape=escape, arc_max_steps=arc_max_steps, arc_ds=arc_ds,
-                             arc_max_ds=arc_max_ds, stop=stop)
+        known = {f.name for f in fields(SolverOptions)} - {"verbose"}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise TypeError(f"solve() got unknown option(s) {', '.join(unknown)}; "
+                            f"the options are {', '.join(sorted(known))}")
+        opts = SolverOptions(verbose=verbose, **options)
         self._setup()
         self._monitor = (monitor if monitor is None or callable(monitor)
                          else np.atleast_1d(np.asarray(monitor, int)))

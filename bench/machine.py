@@ -1,0 +1,47 @@
+"""The machine a benchmark ran on, recorded in every bench/results file: CPU
+model, cores (and those this process may use), Python and library versions,
+Numba's threading layer and thread count, the thread variables of the
+environment and the load average (a shared machine shows up there)."""
+
+import os
+import platform
+from importlib import metadata
+from pathlib import Path
+
+LIBRARIES = ("numpy", "scipy", "numba", "llvmlite", "pyamg", "pypardiso", "mkl", "intel-openmp", "tbb",
+             "scikit-fem")
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS", "NUMBA_THREADING_LAYER", "MKL_NUM_THREADS",
+                    "OPENBLAS_NUM_THREADS", "KMP_BLOCKTIME", "OMP_WAIT_POLICY")
+
+
+def cpu_model():
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def version(dist):
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def machine_info(extra_libraries=()):
+    """A dict for the 'machine' entry of a results file.  Call it after the
+    kernels ran once (Numba's threading layer is known only then)."""
+    import numba
+    try:
+        layer = numba.threading_layer()
+    except ValueError:                   # no parallel region has run yet
+        layer = None
+    return {"cpu": cpu_model(), "cores": os.cpu_count(), "cores_available": len(os.sched_getaffinity(0)),
+            "python": platform.python_version(),
+            "libraries": {d: version(d) for d in (*LIBRARIES, *extra_libraries)},
+            "numba_threading_layer": layer, "numba_threads": numba.get_num_threads(),
+            "environment": {v: os.environ.get(v) for v in THREAD_VARIABLES},
+            "load_average": list(os.getloadavg())}

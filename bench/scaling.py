@@ -1,0 +1,167 @@
+"""Solver scaling on the leaf growth scene (issue 10, item 6).
+
+The default scene (meshes/leaf.toml: a disc of radius 1 grown in its plane by
+1 + 0.3 rho^2 buckles into a saddle) on shapes.disc(rings) meshes of about
+6 rings^2 triangles, solved to a relative gradient of 1e-8 in one adaptive
+continuation step, with every linear method where it fits: "pardiso",
+"superlu" (small meshes), "amg".  Each run is a fresh process on 2 threads
+(NUMBA/OMP/MKL_NUM_THREADS = 2) that first loads the compiled kernels and
+solves a tiny leaf (compile time excluded, reported separately), then
+solves the scene and times one Hessian assembly at the solution (the unit
+of cost: the whole solve in Hessian assemblies is a ratio that transfers
+between machines), and reports its peak resident memory.
+
+Writes bench/results/scaling.json (rows: n_triangles, dofs, solver, wall_s,
+assembly_s, solve_in_assemblies, peak_mem_gb, newton_its, krylov_its,
+krylov_per_newton, factorizations, energy, stable, converged, error) and
+bench/results/scaling.png.
+
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg]
+      python bench/scaling.py --quick        (rings 8 and 16)
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+sys.path.insert(0, str(HERE))
+
+RTOL = 1e-8
+THREADS = 2
+# where a method is run (triangles): SuperLU's fill and time grow too fast
+# beyond 50k triangles; two PARDISO factors of a 1M-triangle mesh (4.5M
+# DOFs, about 3 KB per DOF each) do not fit in 24 GB
+LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None}
+TIME_LIMIT_S = 3 * 3600
+
+CHILD = r"""
+import json, resource, sys, time
+import numpy as np
+from shellritz.batch import prepare_kernels
+from shellritz.scenes import leaf
+from shellritz import SolveError
+rings, solver, rtol = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
+kernels_s, compiled = prepare_kernels()
+t = time.perf_counter()
+leaf(4).solve(verbose=False, linear=solver)
+warm_s = time.perf_counter() - t
+shell = leaf(rings)
+row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solver,
+           kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s)
+t = time.perf_counter()
+try:
+    res = shell.solve(verbose=False, linear=solver, rtol=rtol)
+    h, converged, error = res.history, True, None
+except SolveError as exc:
+    h, converged, error = exc.history, False, str(exc)
+row["wall_s"] = time.perf_counter() - t
+x = shell.free_state()
+times = []
+for _ in range(3):
+    t = time.perf_counter()
+    E, g, K = shell.evaluate(x, 2)
+    times.append(time.perf_counter() - t)
+its = h.iterations
+row.update(dofs=int(len(x)), assembly_s=float(np.median(times)), converged=converged, error=error,
+           newton_its=len(its), krylov_its=int(sum(i.krylov_its for i in its)),
+           krylov_per_newton=float(np.mean([i.krylov_its for i in its])) if its else None,
+           krylov_max=int(max((i.krylov_its for i in its), default=0)),
+           factorizations=h.factorizations, evaluations=list(h.evaluations),
+           setup_s=float(sum(i.setup_s for i in its)), linear_solve_s=float(sum(i.solve_s for i in its)),
+           energy=float(E), grad_rel=float(np.linalg.norm(g) / its[0].grad_norm) if its else None,
+           stable=h.stable, notes=h.notes[:5], linear_used=h.linear,
+           peak_mem_gb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20)
+row["solve_in_assemblies"] = row["wall_s"] / row["assembly_s"]
+from machine import machine_info
+row["machine"] = machine_info()
+print("ROW " + json.dumps(row))
+"""
+
+
+def run(rings, solver):
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
+               MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
+    t = time.perf_counter()
+    try:
+        p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL)], env=env,
+                           capture_output=True, text=True, timeout=TIME_LIMIT_S)
+    except subprocess.TimeoutExpired:
+        return {"rings": rings, "solver": solver, "converged": False,
+                "error": f"time limit {TIME_LIMIT_S} s", "wall_s": time.perf_counter() - t}
+    for line in p.stdout.splitlines():
+        if line.startswith("ROW "):
+            return json.loads(line[4:])
+    return {"rings": rings, "solver": solver, "converged": False,
+            "error": f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:] or ''}",
+            "wall_s": time.perf_counter() - t}
+
+
+def chart(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
+    for solver in sorted({r["solver"] for r in rows}):
+        rs = sorted((r for r in rows if r["solver"] == solver and r.get("converged")),
+                    key=lambda r: r["n_triangles"])
+        if not rs:
+            continue
+        n = [r["n_triangles"] for r in rs]
+        ax[0].loglog(n, [r["wall_s"] for r in rs], "o-", label=solver)
+        ax[1].semilogx(n, [r["solve_in_assemblies"] for r in rs], "o-", label=solver)
+        ax[2].loglog(n, [r["peak_mem_gb"] for r in rs], "o-", label=solver)
+    rs = sorted((r for r in rows if "assembly_s" in r), key=lambda r: r["n_triangles"])
+    seen = {}
+    for r in rs:
+        seen.setdefault(r["n_triangles"], r["assembly_s"])
+    ax[0].loglog(list(seen), list(seen.values()), "k--", label="one Hessian assembly")
+    ax[0].set(xlabel="triangles", ylabel="wall time of the solve (s)", title="leaf, 2 threads")
+    ax[1].set(xlabel="triangles", ylabel="solve / one Hessian assembly", title="cost in assemblies")
+    ax[2].set(xlabel="triangles", ylabel="peak resident memory (GB)", title="memory")
+    for a in ax:
+        a.grid(True, which="both", alpha=0.3)
+        a.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rings", type=int, nargs="+", default=[16, 45, 91, 129, 182, 408])
+    ap.add_argument("--solvers", nargs="+", default=["pardiso", "superlu", "amg"])
+    ap.add_argument("--quick", action="store_true", help="rings 8 and 16")
+    ap.add_argument("--out", default=str(RESULTS / "scaling.json"))
+    args = ap.parse_args()
+    rings = [8, 16] if args.quick else args.rings
+    out = Path(args.out if not args.quick else RESULTS / "scaling_quick.json")
+    rows = json.loads(out.read_text())["rows"] if out.exists() and not args.quick else []
+    done = {(r["rings"], r["solver"]) for r in rows}
+    for k in rings:
+        n_est = 6 * k * k
+        for solver in args.solvers:
+            limit = LIMITS[solver]
+            if (k, solver) in done or (limit is not None and n_est > limit):
+                continue
+            row = run(k, solver)
+            print(f"rings {k:4d} {solver:8s} " + (
+                f"{row['n_triangles']:8d} tri {row['wall_s']:8.1f} s = {row['solve_in_assemblies']:6.1f} "
+                f"assemblies, {row['newton_its']} Newton, {row['krylov_per_newton']:.1f} Krylov/Newton, "
+                f"{row['peak_mem_gb']:.2f} GB" if row.get("converged") else f"FAILED {row.get('error')}"),
+                flush=True)
+            rows = [r for r in rows if (r["rings"], r["solver"]) != (k, solver)] + [row]
+            machine = next((r["machine"] for r in rows if "machine" in r), None)
+            out.write_text(json.dumps({"benchmark": "leaf growth scene, solver scaling", "rtol": RTOL,
+                                       "threads": THREADS, "machine": machine, "rows": rows}, indent=1))
+    chart(rows, out.with_suffix(".png"))
+
+
+if __name__ == "__main__":
+    main()
