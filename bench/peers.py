@@ -59,10 +59,11 @@ for _var in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLA
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
-from importlib import metadata  # noqa: E402
 from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))      # bench/machine.py
 
 import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
@@ -224,34 +225,15 @@ def run_kratos(mesh, clamped, tip):
 
 
 # ------------------------------------------------------------------ machine
-def machine_info():
-    import numba
+def peer_machine_info():
+    """bench/machine.py's record plus Kratos' build and threads."""
+    from machine import machine_info
     KM, _ = import_kratos()
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-
-    def version(dist):
-        try:
-            return metadata.version(dist)
-        except metadata.PackageNotFoundError:
-            return None
-
-    libs = {d: version(d) for d in ("numpy", "scipy", "numba", "pypardiso", "mkl", "KratosMultiphysics",
-                                    "KratosStructuralMechanicsApplication", "KratosLinearSolversApplication")}
-    return {"cpu": cpu, "cores": os.cpu_count(), "cores_available": len(os.sched_getaffinity(0)),
-            "python": platform.python_version(), "libraries": libs,
-            "kratos_build": KM.KratosGlobals.Kernel.Version(),
-            "numba_threading_layer": numba.threading_layer(), "numba_threads": numba.get_num_threads(),
-            "kratos_threads": KM.ParallelUtilities.GetNumThreads(),
-            "environment": {v: os.environ.get(v) for v in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS",
-                                                           "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")},
-            "load_average": list(os.getloadavg())}
+    info = machine_info(extra_libraries=("KratosMultiphysics", "KratosStructuralMechanicsApplication",
+                                         "KratosLinearSolversApplication"))
+    info.update(kratos_build=KM.KratosGlobals.Kernel.Version(),
+                kratos_threads=KM.ParallelUtilities.GetNumThreads())
+    return info
 
 
 # ------------------------------------------------------------------ run
@@ -285,7 +267,7 @@ def main():
     print(f"kernels {'compiled' if compiled else 'loaded'} in {kernels_s:.1f} s; warm-up solves: shellritz "
           f"{compile_info['shellritz_warmup_s']:.1f} s, Kratos {compile_info['kratos_warmup_s']:.1f} s", flush=True)
 
-    machine = machine_info()
+    machine = peer_machine_info()
     runs, rows = [], []
     for nx, ny in CASES["quick" if args.quick else "full"]:
         mesh = strip(nx, ny)
