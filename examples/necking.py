@@ -52,7 +52,7 @@ KNEE = 1.05     # compared past the yield knee (eps0 = 0.02), where the 2D path 
 def shell_path(law, n, lam_e):
     eng = necking_strip(law, H, LENGTH, n, END_STRETCH, imperfection=IMPERFECTION, symmetric=True)
     t0 = time.perf_counter()
-    rows, stop = follow_neck(eng, STEPS)
+    rows, stop = follow_neck(eng, STEPS, max_ds=1.0 / STEPS)      # evenly sampled for the charts
     wall = time.perf_counter() - t0
     marks = path_landmarks([r["lam"] for r in rows], [r["force"] for r in rows],
                            [r["t_min"] for r in rows], [lam_e - r["stretch_max"] for r in rows])

@@ -23,7 +23,8 @@ Methods (``method=`` of :func:`make_linear_solver`):
     degree ordering of A^T + A redone at every factorization); inertia from the
     pivot signs.  Slower (no reuse of the analysis), always available.
 ``"amg"``  pyamg smoothed aggregation on the 9 x 9 nodal blocks with the six
-    rigid-body modes (positions and tangent derivatives) as near null space,
+    rigid-body modes (positions and tangent derivatives) and six quadratic
+    bending modes as near null space,
     as the preconditioner of the conjugate gradients; the hierarchy is kept
     across Newton steps and rebuilt when the Krylov iterations grow.  No
     inertia (stability by LOBPCG on request).
@@ -301,9 +302,10 @@ class AMGSolver:
 
     The free-DOF Hessian is embedded in the full nodal numbering (fixed DOFs
     get an identity row scaled to the diagonal), so that it has 9 x 9 nodal
-    blocks; the near null space is the six rigid-body modes of the current
-    state (translations, and rotations acting on positions and tangent
-    derivatives).  The hierarchy is built on the first Hessian (the
+    blocks; the near null space is the engine's (``block_layout``: the six
+    rigid-body modes of the current state -- translations, and rotations
+    acting on positions and tangent derivatives -- and for triangles six
+    bending modes).  The hierarchy is built on the first Hessian (the
     reference state) and rebuilt on the current one when the CG iterations
     grow beyond ``rebuild_growth`` times those after the last build, but only
     where CG met no negative curvature (a V-cycle of an indefinite Hessian is
@@ -316,7 +318,7 @@ class AMGSolver:
 
     def __init__(self, n, layout, rebuild_growth=2.0, options=None):
         self.n = n
-        self.block, self.free_full, self.n_full, self.rigid_modes = layout
+        self.block, self.free_full, self.n_full, _, self.near_null = layout
         self.rebuild_growth = rebuild_growth
         self.options = dict(options or {})
         self._ml = self._previous = None
@@ -353,9 +355,9 @@ class AMGSolver:
                     max_coarse=3000, coarse_solver="splu")
         opts.update(self.options)
         with warnings.catch_warnings():
-            # six rigid modes for 9 DOFs per node: pyamg warns, on purpose here
+            # fewer near-null modes than DOFs per node (line engines): pyamg warns, on purpose here
             warnings.filterwarnings("ignore", message="Having less target vectors")
-            ml = pyamg.smoothed_aggregation_solver(A, B=self.rigid_modes(), **opts)
+            ml = pyamg.smoothed_aggregation_solver(A, B=self.near_null(), **opts)
         self._previous, self._ml = self._ml, ml
         self._its_at_build = None
         self.builds += 1
@@ -404,7 +406,8 @@ class AMGSolver:
 def make_linear_solver(method, n, indptr, indices, layout=None, singular=False):
     """The linear solver for a Hessian pattern (lower CSR of n free DOFs).
     ``layout``: (block size, free DOFs in the full numbering, number of full
-    DOFs, callable -> rigid modes (n_full, 6)) for AMG; ``singular``: the
+    DOFs, callable -> rigid modes (n_full, 6), callable -> near null space
+    (n_full, k)) for AMG; ``singular``: the
     problem has free rigid motions (regularized factorizations)."""
     method = resolve_method(method, n, has_blocks=layout is not None)
     if method == "amg":
@@ -524,7 +527,7 @@ def free_rigid_modes(layout):
     layout, combined so that they vanish on every fixed DOF."""
     if layout is None:
         return None
-    _, free, n_full, rigid_modes = layout
+    _, free, n_full, rigid_modes, _ = layout
     B = rigid_modes()
     fixed = np.ones(n_full, bool)
     fixed[free] = False

@@ -298,17 +298,17 @@ def end_force(engine):
     return float(engine.end_reaction(-1)[0])
 
 
-def follow_neck(engine, steps=30, max_steps=400):
+def follow_neck(engine, steps=30, max_steps=400, max_ds=None):
     """Follow the equilibrium path of a necking_strip from the reference to
     the end stretch engine.end_stretch by the solver's pseudo-arc-length
     continuation (solve.continuation, path "arclength": it passes the force
     maximum and the folds where the neck snaps back; first step 1/steps in
-    t, at most max_steps steps).  Returns (rows of path_rows, why it
+    t, at most max_steps steps, none longer than max_ds: default 4/steps).  Returns (rows of path_rows, why it
     stopped): the path ends at t = 1, or where the continuation stops (its
     message; the path up to there is kept, the engine holds its last
     converged state)."""
     engine._setup()                   # the solver protocol's set-up (as solve() does)
-    opts = SolverOptions(path="arclength", verbose=False, arc_max_steps=max_steps)
+    opts = SolverOptions(path="arclength", verbose=False, arc_max_steps=max_steps, arc_max_ds=max_ds)
     try:
         history = continuation(engine, steps=steps, opts=opts)
         stop = f"reached the end stretch {engine.end_stretch:g}"

@@ -584,10 +584,14 @@ class Shell(Solvable):
         return E, g, K
 
     def block_layout(self):
-        """Nodal blocks for AMG: (9, free DOFs in the full numbering, 9 n,
-        callable -> the six rigid-body modes of the current state (9 n, 6):
-        translations, and rotations acting on positions and both tangent
-        derivatives)."""
+        """Nodal blocks: (9, free DOFs in the full numbering, 9 n, callable ->
+        the six rigid-body modes of the current state (9 n, 6): translations,
+        and rotations acting on positions and both tangent derivatives;
+        callable -> the near null space for AMG: the rigid modes and six
+        bending modes, normal displacements c_i c_j n quadratic in the
+        centred coordinates c (the softest modes of a thin shell after the
+        rigid ones: with them smoothed aggregation needs 15 instead of 32 CG
+        iterations on the 12k-triangle leaf, 54 instead of 124 at 50k))."""
         n = self.mesh.n_nodes
 
         def rigid_modes():
@@ -597,7 +601,25 @@ class Shell(Solvable):
                 w = np.eye(3)[k]
                 B[:, :, :, 3 + k] = np.cross(w, self.U)        # w x r, w x a_1, w x a_2
             return B.reshape(9 * n, 6)
-        return 9, self.free, 9 * n, rigid_modes
+
+        def near_null():
+            r, a1, a2 = self.U[:, 0], self.U[:, 1], self.U[:, 2]
+            nrm = np.cross(a1, a2)
+            nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+            size = max(np.abs(r - r.mean(axis=0)).max(), 1e-300)
+            c = (r - r.mean(axis=0)) / size
+            modes = [rigid_modes()]
+            for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)):
+                grad = np.zeros_like(c)            # d(c_i c_j)/dr
+                grad[:, i] += c[:, j] / size
+                grad[:, j] += c[:, i] / size
+                B = np.empty((n, 3, 3))
+                B[:, 0] = (c[:, i] * c[:, j])[:, None] * nrm
+                B[:, 1] = (grad * a1).sum(axis=1)[:, None] * nrm
+                B[:, 2] = (grad * a2).sum(axis=1)[:, None] * nrm
+                modes.append(B.reshape(9 * n, 1))
+            return np.hstack(modes)
+        return 9, self.free, 9 * n, rigid_modes, near_null
 
     def _node_positions(self, nodes):
         return self.U[nodes, 0]

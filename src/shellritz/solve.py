@@ -706,9 +706,12 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
     around it, or where ``opts.stop`` says.  Equilibria on the way may be
     unstable (their inertia is recorded).  A step is redone with half the
     length when its corrector fails or leaves the neighbourhood of the
-    predictor, the inertia changes by more than one, or the path turns over
+    predictor, the inertia changes by more than one, the path turns over
     the step (tangents at its ends and the chord differ by more than
-    ARC_MAX_TURN: a jump across a fold or to another branch)."""
+    ARC_MAX_TURN: a jump across a fold or to another branch), or the parity
+    of the inertia changes without t turning back (or t turns back without
+    it); at the smallest step what the corrector finds is accepted (a
+    bifurcation point)."""
     L2 = problem.size_scale() ** 2 * max(len(problem.free_state()), 1)
     ds = opts.arc_ds or 1.0 / max(1, steps)
     ds_max = opts.arc_max_ds or 4 * ds
@@ -772,7 +775,12 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
                 turns = [tau_new[0] @ tau[0] / L2 + tau_new[1] * tau[1],
                          (dx @ tau[0] / L2 + dt * tau[1]) / chord,
                          (dx @ tau_new[0] / L2 + dt * tau_new[1]) / chord]
-                ok = min(turns) >= ARC_MAX_TURN or smallest
+                # a change of the inertia's parity (det K changes sign) on a
+                # regular path is a limit point: t turns back; otherwise the
+                # step crossed a bifurcation or jumped to another branch
+                parity = (neg_new - negative) % 2 == 1
+                turned = tau_new[1] * tau[1] < 0
+                ok = (min(turns) >= ARC_MAX_TURN and parity == turned) or smallest
             if ok:
                 break
             ds = _step_back(problem, saved, t, ds, min_ds, opts, history, "arc step")

@@ -473,7 +473,8 @@ class LineShell(Solvable):
         """Nodal blocks (a, a', b, b') and the rigid motions of the curve
         (``_rigid_modes``), for the solver (linalg.free_rigid_modes)."""
         n = self.n_nodes
-        return 4, self.free, 4 * n, lambda: self._rigid_modes(self.U.reshape(n, 4))
+        rigid = lambda: self._rigid_modes(self.U.reshape(n, 4))
+        return 4, self.free, 4 * n, rigid, rigid
 
     def _node_positions(self, nodes):
         """(a, b) of the nodes."""
