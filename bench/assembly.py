@@ -76,13 +76,16 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--max", type=int, default=200_000)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--no-compile", action="store_true",
+                    help="skip the cold-compile measurement (bench/first_run.py measures the whole first run)")
     args = ap.parse_args()
     import numba
     numba.set_num_threads(2)
     sizes = [n for n in (1_000, 4_000, 16_000, 50_000, 100_000, 200_000) if n <= args.max]
     rows = []
-    compile_s = compile_time()
-    print(f"compile (cold cache, 3 modes): {compile_s:.1f} s")
+    compile_s = compile_time() if not args.no_compile else None
+    if compile_s is not None:
+        print(f"compile (cold cache, 3 modes): {compile_s:.1f} s")
     for n in sizes:
         s, x = scene(n)
         ne = s.mesh.n_triangles
@@ -105,9 +108,10 @@ def main():
         s, x = scene(16_000, level)
         levels[level] = s.mesh.n_triangles / median(lambda: s.evaluate(x, 2), args.repeats)
         print(f"Hessian assembly, {level}: {levels[level]:,.0f} triangles/s", flush=True)
+    from machine import machine_info
     RESULTS.mkdir(exist_ok=True)
     out = {"threads": 2, "model": "consistent, neo-Hookean, G1 != 0, 6-point rule",
-           "compile_s": compile_s, "rows": rows, "hessian_triangles_per_s_by_level_16k": levels}
+           "compile_s": compile_s, "rows": rows, "machine": machine_info(), "hessian_triangles_per_s_by_level_16k": levels}
     (RESULTS / "assembly.json").write_text(json.dumps(out, indent=2))
     chart(rows)
 

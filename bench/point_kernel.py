@@ -119,6 +119,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=20000)
     ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--no-compile", action="store_true",
+                    help="skip the cold-compile measurement (bench/first_run.py measures the whole first run)")
     args = ap.parse_args()
     import numba
     from shellritz.materials import NeoHookean
@@ -126,7 +128,7 @@ def main():
     n = args.points
     pts = make_points(n)
     out = buffers(n)
-    compile_cold, compile_cached, import_s = compile_time()
+    compile_cold, compile_cached, import_s = compile_time() if not args.no_compile else (None, None, None)
     modes = {0: "energy", 1: "gradient", 2: "hessian"}
     levels = {0: "membrane", 1: "bending", 2: "consistent"}
     res = {"points": n, "repeats": args.repeats, "law": "neo-Hookean C=1 nu=0.3",
@@ -158,6 +160,8 @@ def main():
     numba.set_num_threads(2)
     for name in modes.values():
         res[f"{name}_pts_per_s"] = res["threads"]["2"][f"{name}_pts_per_s"]
+    from machine import machine_info
+    res["machine"] = machine_info()
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "point_kernel.json").write_text(json.dumps(res, indent=2))
     chart(res)
