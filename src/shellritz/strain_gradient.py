@@ -1,0 +1,224 @@
+"""The strain-gradient term that keeps the shell energy bounded below at
+wavelengths below the thickness (docs/validity.md).
+
+Why it is needed.  The h^3 bracket of MODEL.md section 4, condensed over y2,
+gives the surface gradient of the thickness stretch (the normal row of rho)
+a stiffness equal to the in-plane stress: under compression the energy of
+an in-plane wave of wavenumber k is
+
+    h k^2 |u|^2 [ E' + (c^2 / 12) Sigma (k h)^2 ],     c = nu / (1 - nu),
+
+negative for (k h)^2 > 12 E' / (c^2 |Sigma|) (k h = 36 at 2 % compression).
+The 3D slab has no such instability: the truncated expansion does.  No
+pointwise change of L can remove it and stay O(h^5) (the k^4 coefficient is
+the r_ab block of the point Hessian), so the cure is the next term of the
+expansion for in-plane waves, added to the energy per unit reference area:
+
+    R = C_R |grad grad eps|^2,    C_R = (h^5 / 1440) c^2 E'
+
+with eps the membrane strain of the middle surface (components in a locally
+orthonormal reference frame, differentiated twice along the surface).  For an
+in-plane wave at small strain it is exactly the O(h^5 k^6) term of the 3D
+slab (checked in bench/validity.py); for smooth fields it is O(h^5), the
+order the model neglects, and it vanishes for uniform strain and rigid
+motions.  With it the in-plane symbol stays positive for compressive stresses
+up to |Sigma| = 0.89 E' / c^2.
+
+This module holds the coefficient and the line-engine (C1 Hermite) version:
+at the Gauss points the second derivatives along the meridian of the
+meridional and hoop strains, at interior nodes the jump of the first
+derivative of the meridional strain (the Hermite field is only C1), an
+interior-penalty form of the same seminorm.  The triangle version is in
+kernels/strain_gradient_dkt.py.
+"""
+
+import numpy as np
+import scipy.sparse as sp
+
+from .discretize import line
+
+
+def coefficient(law, h):
+    """C_R = (h^5 / 1440) c^2 E' from the law's moduli at the reference state
+    (isotropic: lambda = AA[11, 22], mu = AA[12, 12]); E' = 4 mu (lambda + mu) /
+    (lambda + 2 mu) the plane-stress modulus, c = lambda / (lambda + 2 mu) the
+    thickness Poisson factor (nu / (1 - nu))."""
+    AA = law.evaluate(np.eye(3))[2]
+    lam, mu = AA[0, 4], AA[1, 1]
+    if not (mu > 0 and lam + 2 * mu > 0):
+        raise ValueError(f"{law!r}: moduli at the reference state lambda = {lam:g}, mu = {mu:g} "
+                         "are not those of a stable isotropic law")
+    E_plane = 4 * mu * (lam + mu) / (lam + 2 * mu)
+    c = lam / (lam + 2 * mu)
+    return h ** 5 / 1440.0 * c * c * E_plane
+
+
+def _hermite_rows(x, ell):
+    """(value, d/ds, d2/ds2, d3/ds3) of the 4 cubic Hermite functions at x in [0, 1]."""
+    H, dH, ddH = line.hermite(x, ell)
+    d3H = np.array([12 / ell ** 3, 6 / ell ** 2, -12 / ell ** 3, 6 / ell ** 2])
+    return np.array([H, dH, ddH, d3H])
+
+
+# kinematic vector per point: k = (a, a', a'', a''', b, b', b'', b''') (d/ds)
+A0, B0 = 0, 4
+
+
+def _square_parts(ks, kd, first):
+    """g = x_0 y_0 - X_0 Y_0 style differences of the products that make up
+    f = sum_x x^2 over the components x in ``first`` (offsets into k) and
+    their s-derivatives f', f'': values (n, 3) from the sum ks = k + kref and
+    difference kd = k - kref (exact zero at the reference), gradients
+    (n, 3, 8) and Hessians (3, 8, 8) of f, f', f'' with respect to k."""
+    n = len(ks)
+    val = np.zeros((n, 3))
+    grad = np.zeros((n, 3, 8))
+    hess = np.zeros((3, 8, 8))
+    k = 0.5 * (ks + kd)
+    for o in first:
+        x0, x1, x2 = o, o + 1, o + 2
+        # f = x0^2, f' = 2 x0 x1, f'' = 2 (x1^2 + x0 x2); u^2 - U^2 = (u - U)(u + U)
+        val[:, 0] += kd[:, x0] * ks[:, x0]
+        val[:, 1] += kd[:, x0] * ks[:, x1] + ks[:, x0] * kd[:, x1]
+        val[:, 2] += 2 * kd[:, x1] * ks[:, x1] + kd[:, x0] * ks[:, x2] + ks[:, x0] * kd[:, x2]
+        grad[:, 0, x0] += 2 * k[:, x0]
+        grad[:, 1, x0] += 2 * k[:, x1]
+        grad[:, 1, x1] += 2 * k[:, x0]
+        grad[:, 2, x1] += 4 * k[:, x1]
+        grad[:, 2, x0] += 2 * k[:, x2]
+        grad[:, 2, x2] += 2 * k[:, x0]
+        hess[0, x0, x0] += 2
+        hess[1, x0, x1] += 2
+        hess[1, x1, x0] += 2
+        hess[2, x1, x1] += 4
+        hess[2, x0, x2] += 2
+        hess[2, x2, x0] += 2
+    return val, grad, hess
+
+
+def _strain_derivative(parts, Dm, second):
+    """eps = f / (2 D) - 1/2 for f = sum of squares (parts) and the reference
+    value D (n, 3: D, D', D''): d eps / dS (second=False) or d2 eps / dS2,
+    S the reference arclength with dS/ds = sqrt(M), M (n, 3) likewise.
+    Returns value (n,), gradient (n, 8) and Hessian (n, 8, 8) in k."""
+    (val, grad, hess), (D, D1, D2), (M, M1, _) = parts, Dm[0], Dm[1]
+    e1 = np.stack([-D1 / (2 * D ** 2), 1 / (2 * D), 0 * D], 1)              # eps'  on (f, f', f'')
+    if not second:
+        c = e1 / np.sqrt(M)[:, None]
+    else:
+        e2 = np.stack([-D2 / (2 * D ** 2) + D1 ** 2 / D ** 3, -D1 / D ** 2, 1 / (2 * D)], 1)
+        c = e2 / M[:, None] - e1 * (M1 / (2 * M ** 2))[:, None]             # d2 eps / dS2
+    return (np.einsum("nj,nj->n", c, val), np.einsum("nj,njk->nk", c, grad),
+            np.einsum("nj,jkl->nkl", c, hess))
+
+
+class LineStrainGradient:
+    """R of the module docstring for a LineShell (axisymmetric or plane strain)."""
+
+    def __init__(self, engine):
+        e = engine
+        self.engine = e
+        self.C = coefficient(e.law, e.h)
+        npt = line.GAUSS_POINTS
+        xg, _ = np.polynomial.legendre.leggauss(npt)
+        xi = 0.5 * (xg + 1)
+        ne = e.n_elements
+        ell = np.diff(e.s)
+        self.Kq = np.zeros((ne * npt, 8, 8))       # k = Kq u_e at the Gauss points
+        for el in range(ne):
+            for g, x in enumerate(xi):
+                self.Kq[el * npt + g] = self._rows(x, ell[el])
+        # interior nodes: the element on the left (at x = 1) and on the right (x = 0)
+        nodes = np.arange(ne) if e.closed else np.arange(1, ne)
+        self.left, self.right = (nodes - 1) % ne, nodes % ne
+        self.Kl = np.array([self._rows(1.0, ell[el]) for el in self.left]).reshape(-1, 8, 8)
+        self.Kr = np.array([self._rows(0.0, ell[el]) for el in self.right]).reshape(-1, 8, 8)
+        Uref = e.ref_nodes.reshape(-1)
+        self.kq_ref = np.einsum("qrd,qd->qr", self.Kq, Uref[e.elem_dofs[e.qelem]])
+        self.kl_ref = np.einsum("qrd,qd->qr", self.Kl, Uref[e.elem_dofs[self.left]])
+        self.kr_ref = np.einsum("qrd,qd->qr", self.Kr, Uref[e.elem_dofs[self.right]])
+        # jump weight: (ring length or unit width) / (mean element length in arclength)
+        jac = np.sqrt(e.ref_nodes[nodes % e.n_nodes, 1] ** 2 + e.ref_nodes[nodes % e.n_nodes, 3] ** 2)
+        width = 2 * np.pi * np.abs(e.ref_nodes[nodes % e.n_nodes, 0]) if e.azimuthal else np.ones(len(nodes))
+        self.w_node = self.C * width / (0.5 * (ell[self.left] + ell[self.right]) * jac)
+        self.w_q = self.C * e.W
+
+    @staticmethod
+    def _rows(x, ell):
+        R = _hermite_rows(x, ell)
+        K = np.zeros((8, 8))
+        K[A0:A0 + 4][:, [0, 1, 4, 5]] = R          # a: DOFs a_i, a'_i, a_j, a'_j
+        K[B0:B0 + 4][:, [2, 3, 6, 7]] = R          # b
+        return K
+
+    def _reference(self, kref):
+        A, dA, ddA, dddA, B, dB, ddB, dddB = kref.T
+        M = np.stack([dA ** 2 + dB ** 2, 2 * (dA * ddA + dB * ddB),
+                      2 * (ddA ** 2 + dA * dddA + ddB ** 2 + dB * dddB)], 1).T
+        D = np.stack([A * A, 2 * A * dA, 2 * (dA * dA + A * ddA)], 1).T
+        return M, D
+
+    def _components(self, k, kref, second):
+        """[(value, grad, hess)] of d^n eps/dS^n for the meridional strain and,
+        on a surface of revolution, the hoop strain."""
+        M, D = self._reference(kref)
+        ks, kd = k + kref, k - kref
+        out = [_strain_derivative(_square_parts(ks, kd, (A0 + 1, B0 + 1)), (M, M), second)]
+        if self.engine.azimuthal and second:
+            out.append(_strain_derivative(_square_parts(ks, kd, (A0,)), (D, M), second))
+        return out
+
+    def evaluate(self, U, mode):
+        """R, and (mode >= 1) its gradient over all DOFs, (mode >= 2) the lower
+        triangle of its Hessian on the free DOFs (CSR, the engine's numbering).
+        Sets ``per_element`` (R of each element; a node's jump term is shared
+        by its two elements)."""
+        e = self.engine
+        ue = U[e.elem_dofs]
+        kq = np.einsum("qrd,qd->qr", self.Kq, ue[e.qelem])
+        terms = [(self.w_q, v, g, H, self.Kq, e.elem_dofs[e.qelem])
+                 for v, g, H in self._components(kq, self.kq_ref, True)]
+        per = np.zeros(e.n_elements)
+        for w, v, *_ in terms:
+            per += np.bincount(e.qelem, w * v * v, minlength=e.n_elements)
+        if len(self.left):
+            kl = np.einsum("qrd,qd->qr", self.Kl, ue[self.left])
+            kr = np.einsum("qrd,qd->qr", self.Kr, ue[self.right])
+            (vl, gl, Hl), = self._components(kl, self.kl_ref, False)
+            (vr, gr, Hr), = self._components(kr, self.kr_ref, False)
+            nj = len(vl)
+            Kj = np.zeros((nj, 16, 16))
+            Kj[:, 0:8, 0:8] = self.Kl
+            Kj[:, 8:16, 8:16] = self.Kr
+            gj = np.zeros((nj, 16))
+            gj[:, 0:8], gj[:, 8:16] = gl, -gr
+            Hj = np.zeros((nj, 16, 16))
+            Hj[:, 0:8, 0:8], Hj[:, 8:16, 8:16] = Hl, -Hr
+            vj = vl - vr
+            terms.append((self.w_node, vj, gj, Hj, Kj,
+                          np.c_[e.elem_dofs[self.left], e.elem_dofs[self.right]]))
+            half = 0.5 * self.w_node * vj * vj
+            per += np.bincount(self.left, half, minlength=e.n_elements)
+            per += np.bincount(self.right, half, minlength=e.n_elements)
+        self.per_element = per
+        R = float(per.sum())
+        if mode == 0:
+            return R, None, None
+        g = np.zeros(4 * e.n_nodes)
+        rows, cols, vals = [], [], []
+        for w, v, gk, Hk, Kk, dofs in terms:
+            J = np.einsum("nk,nkd->nd", gk, Kk)                 # d value / d element DOFs
+            np.add.at(g, dofs, 2 * (w * v)[:, None] * J)
+            if mode >= 2:
+                Hd = 2 * w[:, None, None] * (np.einsum("nd,ne->nde", J, J)
+                                             + v[:, None, None] * np.einsum("nkd,nkl,nle->nde", Kk, Hk, Kk))
+                rows.append(np.broadcast_to(dofs[:, :, None], Hd.shape).ravel())
+                cols.append(np.broadcast_to(dofs[:, None, :], Hd.shape).ravel())
+                vals.append(Hd.ravel())
+        if mode == 1:
+            return R, g, None
+        fr, fc = e._fidx[np.concatenate(rows)], e._fidx[np.concatenate(cols)]
+        keep = (fr >= 0) & (fc >= 0) & (fr >= fc)
+        nf = len(e.free)
+        K = sp.csr_matrix((np.concatenate(vals)[keep], (fr[keep], fc[keep])), shape=(nf, nf))
+        return R, g, K
