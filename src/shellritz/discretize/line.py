@@ -21,6 +21,7 @@ from ..kernels.point import STATUS_TEXT, _reference_geometry
 from ..materials import Law
 from ..model import check_thickness, level_id
 from ..solve import EvaluationError, Solvable
+from .. import strain_gradient
 
 GAUSS_POINTS = 5
 
@@ -73,6 +74,9 @@ class LineShell(Solvable):
         self._fixed = np.zeros((self.n_nodes, 4), bool)
         self._bc = []
         self._build_points()
+        # the h^5 strain-gradient term that keeps the bending levels bounded
+        # below on fine meshes (strain_gradient.py, docs/validity.md)
+        self.strain_gradient = None if level == "membrane" else strain_gradient.LineStrainGradient(self)
 
     # ----------------------------------------------------------------- geometry
     def _kinematics(self, kin):
@@ -441,6 +445,10 @@ class LineShell(Solvable):
                                   f"{STATUS_TEXT[int(self._status[q])]}")
         E = self._Lq.sum() - self._f @ U
         self._E_magnitude = np.abs(self._Lq).sum() + np.abs(self._f * U).sum()
+        if self.strain_gradient is not None:
+            R, gR, KR = self.strain_gradient.evaluate(U, mode)
+            E += R
+            self._E_magnitude += R
         if self._p_t:
             V, gV, HV = self._volume(U, mode)
             E -= self._p_t * V
@@ -451,6 +459,8 @@ class LineShell(Solvable):
         g -= self._f
         if self._p_t:
             g -= self._p_t * gV
+        if self.strain_gradient is not None:
+            g += gR
         if mode == 1:
             return E, g[self.free], None
         rows = np.broadcast_to(self.elem_dofs[self.qelem][:, :, None], self._Hq.shape)
@@ -463,6 +473,8 @@ class LineShell(Solvable):
         nf = len(self.free)
         K = sp.csr_matrix((vals[keep], (fr[keep], fc[keep])), shape=(nf, nf))
         K.sum_duplicates()
+        if self.strain_gradient is not None:
+            K = K + KR
         return E, g[self.free], K
 
     def _volume(self, U, mode):
