@@ -28,10 +28,12 @@ from .discretize.dkt import rule
 from .kernels.assembly import (add_position_blocks, assemble_dkt, color_elements,
                                hessian_pattern)
 from .kernels.point import STATUS_TEXT
+from .kernels.strain_gradient_dkt import add_dkt_strain_gradient
 from .materials import Law
 from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id
 from .solve import EvaluationError, Solvable
+from .strain_gradient import coefficient as strain_gradient_coefficient
 
 __all__ = ["Shell", "Result"]
 
@@ -85,6 +87,9 @@ class Shell(Solvable):
         self.level = level
         self._level = level_id(level)
         self.bary, self.wts = rule(quadrature)
+        # coefficient of the h^5 strain-gradient term of the bending levels
+        # (strain_gradient.py, docs/validity.md)
+        self.strain_gradient_C = 0.0 if level == "membrane" else strain_gradient_coefficient(material, self.h)
         n = mesh.n_nodes
         self.X = mesh.vertices
         self.frames = mesh.frames.copy()
@@ -464,6 +469,7 @@ class Shell(Solvable):
         self.Y1 = np.zeros((ne, nq, 3))
         self.Y2 = np.zeros((ne, nq, 3))
         self._Le = np.zeros(ne)
+        self._Re = np.zeros(ne)
         self._G = np.zeros((self.mesh.n_nodes, 3, 3))
         self._status = np.zeros(ne, np.int64)
         self._f_faces = self._face_load_vector()
@@ -562,6 +568,11 @@ class Shell(Solvable):
             e = int(np.argmax(self._status != 0))
             raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "
                                   f"{STATUS_TEXT[int(self._status[e])]}")
+        if self.strain_gradient_C:
+            add_dkt_strain_gradient(mode, self.strain_gradient_C, self.mesh.triangles, self.X,
+                                    self.frames, U, self.bary, self.wts, self._order,
+                                    self._colour_start, self._emap, numba.get_num_threads(),
+                                    self._Re, self._Le, self._G, data)
         r = U[:, 0]
         E = self._Le.sum() - np.sum(self._f_t * r)
         self._E_magnitude = np.abs(self._Le).sum() + np.abs(self._f_t * r).sum()
