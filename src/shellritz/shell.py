@@ -28,12 +28,11 @@ from .discretize.dkt import rule
 from .kernels.assembly import (add_position_blocks, assemble_dkt, color_elements,
                                hessian_pattern)
 from .kernels.point import STATUS_TEXT
-from .kernels.strain_gradient_dkt import add_dkt_strain_gradient
 from .materials import Law
 from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id
 from .solve import EvaluationError, Solvable
-from .strain_gradient import coefficient as strain_gradient_coefficient
+from .strain_gradient import DKTStrainGradient
 
 __all__ = ["Shell", "Result"]
 
@@ -87,9 +86,9 @@ class Shell(Solvable):
         self.level = level
         self._level = level_id(level)
         self.bary, self.wts = rule(quadrature)
-        # coefficient of the h^5 strain-gradient term of the bending levels
-        # (strain_gradient.py, docs/validity.md)
-        self.strain_gradient_C = 0.0 if level == "membrane" else strain_gradient_coefficient(material, self.h)
+        # the h^5 strain-gradient term that keeps the bending levels bounded
+        # below on fine meshes (strain_gradient.py, docs/validity.md)
+        self.strain_gradient = None if level == "membrane" else DKTStrainGradient(mesh, material, self.h)
         n = mesh.n_nodes
         self.X = mesh.vertices
         self.frames = mesh.frames.copy()
@@ -469,7 +468,6 @@ class Shell(Solvable):
         self.Y1 = np.zeros((ne, nq, 3))
         self.Y2 = np.zeros((ne, nq, 3))
         self._Le = np.zeros(ne)
-        self._Re = np.zeros(ne)
         self._G = np.zeros((self.mesh.n_nodes, 3, 3))
         self._status = np.zeros(ne, np.int64)
         self._f_faces = self._face_load_vector()
@@ -482,7 +480,12 @@ class Shell(Solvable):
         fidx = -np.ones(9 * self.mesh.n_nodes, np.int64)
         fidx[self.free] = np.arange(len(self.free))
         self.free_index = fidx
-        self._indptr, self._indices, self._emap = hessian_pattern(tri, fidx.reshape(-1, 9))
+        sg = self.strain_gradient
+        pattern_tri = tri if sg is None else np.vstack([tri, sg.virtual_triangles()])
+        self._indptr, self._indices, emap = hessian_pattern(pattern_tri, fidx.reshape(-1, 9))
+        self._emap = emap[: len(tri)].copy()
+        if sg is not None:
+            sg.set_pattern(emap[len(tri):])
         self._nnz = len(self._indices)
         colour = color_elements(tri, self.mesh.n_nodes)
         self._order = np.argsort(colour, kind="stable")
@@ -568,11 +571,8 @@ class Shell(Solvable):
             e = int(np.argmax(self._status != 0))
             raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "
                                   f"{STATUS_TEXT[int(self._status[e])]}")
-        if self.strain_gradient_C:
-            add_dkt_strain_gradient(mode, self.strain_gradient_C, self.mesh.triangles, self.X,
-                                    self.frames, U, self.bary, self.wts, self._order,
-                                    self._colour_start, self._emap, numba.get_num_threads(),
-                                    self._Re, self._Le, self._G, data)
+        if self.strain_gradient is not None:
+            self.strain_gradient.add(mode, self, U, self._Le, self._G, data)
         r = U[:, 0]
         E = self._Le.sum() - np.sum(self._f_t * r)
         self._E_magnitude = np.abs(self._Le).sum() + np.abs(self._f_t * r).sum()

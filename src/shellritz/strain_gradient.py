@@ -32,10 +32,12 @@ interior-penalty form of the same seminorm.  The triangle version is in
 kernels/strain_gradient_dkt.py.
 """
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
 from .discretize import line
+from .kernels.strain_gradient_dkt import add_dkt_edge_strain_gradient, add_dkt_strain_gradient
 
 
 def coefficient(law, h):
@@ -222,3 +224,106 @@ class LineStrainGradient:
         nf = len(e.free)
         K = sp.csr_matrix((np.concatenate(vals)[keep], (fr[keep], fc[keep])), shape=(nf, nf))
         return R, g, K
+
+
+class DKTStrainGradient:
+    """R of the module docstring for a DKT Shell: element interiors and the
+    jumps across interior edges (kernels/strain_gradient_dkt.py).
+
+    The jump terms couple the two vertices opposite an edge, which share no
+    triangle: ``virtual_triangles`` lists, per interior edge, a triangle
+    (opposite 1, opposite 2, a shared vertex) that the Hessian pattern must
+    include; ``set_pattern`` takes their element map."""
+
+    EDGE_POINTS = 2
+
+    def __init__(self, mesh, law, h):
+        self.C = coefficient(law, h)
+        tri, X = mesh.triangles, mesh.vertices
+        eoh = mesh.edge_of_halfedge.ravel()
+        order = np.argsort(eoh, kind="stable")
+        pair = np.where(eoh[order][1:] == eoh[order][:-1])[0]
+        h1, h2 = order[pair], order[pair + 1]          # the two half-edges of each interior edge
+        self.edge_tri = np.ascontiguousarray(np.c_[h1 // 3, h2 // 3])
+        k1, k2 = h1 % 3, h2 % 3                        # half-edge k joins local vertices k, k+1
+        nE = len(h1)
+        xg, wg = np.polynomial.legendre.leggauss(self.EDGE_POINTS)
+        tg, wg = 0.5 * (xg + 1), 0.5 * wg
+        lam = np.zeros((nE, 2, self.EDGE_POINTS, 3))
+        for side, k in ((0, k1), (1, k2)):
+            t = tg[None, :] if side == 0 else 1 - tg[None, :]   # same points, opposite direction
+            rows = np.arange(nE)
+            lam[rows[:, None], side, np.arange(self.EDGE_POINTS)[None, :], k[:, None]] = 1 - t
+            lam[rows[:, None], side, np.arange(self.EDGE_POINTS)[None, :], ((k + 1) % 3)[:, None]] = t
+        self.edge_lam = np.ascontiguousarray(lam)
+        a, b = tri[h1 // 3, k1], tri[h1 // 3, (k1 + 1) % 3]
+        length = np.linalg.norm(X[b] - X[a], axis=1)
+        height = (mesh.areas[h1 // 3] + mesh.areas[h2 // 3]) / length
+        self.edge_w = np.ascontiguousarray(wg[None, :] * (length / height)[:, None])
+        t = (X[b] - X[a]) / length[:, None]
+        nu = np.cross(mesh.facet_normals[h1 // 3], t) + np.cross(mesh.facet_normals[h2 // 3], t)
+        nu /= np.linalg.norm(nu, axis=1)[:, None]
+        self.edge_frame = np.ascontiguousarray(np.stack([t, nu], axis=1))
+        # edge nodes: side 0's vertices (0, 1, 2 in its order), then side 1's opposite (3)
+        opp1 = tri[h1 // 3, (k1 + 2) % 3]
+        opp2 = tri[h2 // 3, (k2 + 2) % 3]
+        nodes4 = np.c_[tri[h1 // 3], opp2]
+        self.edge_node = np.zeros((nE, 2, 3), np.int64)
+        self.edge_node[:, 0] = np.arange(3)
+        for i in range(3):
+            self.edge_node[:, 1, i] = np.argmax(nodes4 == tri[h2 // 3, i][:, None], axis=1)
+        self.edge_local = -np.ones((nE, 4, 2), np.int64)
+        for side in range(2):
+            for i in range(3):
+                self.edge_local[np.arange(nE), self.edge_node[:, side, i], side] = i
+        self._virtual = np.c_[opp1, opp2, a]
+        self.edge_order, self.edge_colour_start = _colour(nodes4, mesh.n_nodes)
+        self.edge_oo = None
+        self.per_element = np.zeros(len(tri))
+        self._RE = np.zeros(nE)
+
+    def virtual_triangles(self):
+        return self._virtual
+
+    def set_pattern(self, emap_virtual):
+        """Positions of the (opposite 1, opposite 2) DOF pairs from the element
+        map of the virtual triangles (local vertices 0, 1: packed index of the
+        entry (9 + b, a) is (9 + b)(10 + b)/2 + a)."""
+        b, a = np.meshgrid(np.arange(9), np.arange(9))
+        self.edge_oo = np.ascontiguousarray(emap_virtual[:, (9 + b) * (10 + b) // 2 + a])
+
+    def add(self, mode, shell, U, Le, G, data):
+        """Add R to the element energies Le, the gradient G (n, 3, 3) and the
+        Hessian values data of the shell's assembly; sets ``per_element``
+        (interior term plus half of each adjacent edge term)."""
+        tri, X, T = shell.mesh.triangles, shell.X, shell.frames
+        Re = self.per_element
+        add_dkt_strain_gradient(mode, self.C, tri, X, T, U, shell.bary, shell.wts, shell._order,
+                                shell._colour_start, shell._emap, numba.get_num_threads(),
+                                Re, Le, G, data)
+        add_dkt_edge_strain_gradient(mode, self.C, tri, X, T, U, self.edge_tri, self.edge_lam,
+                                     self.edge_w, self.edge_frame, self.edge_node, self.edge_local,
+                                     self.edge_oo, self.edge_order, self.edge_colour_start,
+                                     shell._emap, self._RE, G, data)
+        half = 0.5 * self._RE
+        for side in range(2):
+            np.add.at(Re, self.edge_tri[:, side], half)
+            np.add.at(Le, self.edge_tri[:, side], half)
+
+
+def _colour(groups, n_nodes):
+    """Greedy colouring of node groups (rows): no two groups of a colour share
+    a node.  Returns (order by colour, start of each colour)."""
+    colour = -np.ones(len(groups), np.int64)
+    node_colours = [set() for _ in range(n_nodes)]
+    for j, g in enumerate(groups):
+        taken = set().union(*(node_colours[v] for v in g))
+        c = 0
+        while c in taken:
+            c += 1
+        colour[j] = c
+        for v in g:
+            node_colours[v].add(c)
+    order = np.argsort(colour, kind="stable")
+    start = np.searchsorted(colour[order], np.arange(colour.max() + 2 if len(colour) else 1))
+    return order, start

@@ -206,3 +206,236 @@ def add_dkt_strain_gradient(mode, C, tri, X, T, U, bary, wts, order, colour_star
                             if pos >= 0:
                                 data[pos] += ke[q, p]
                             k += 1
+
+
+# ---------------------------------------------------------------------------
+# jumps across interior edges
+# ---------------------------------------------------------------------------
+#
+# At the edge Gauss points the first derivatives q_abc = d e_ab / dxi_c of
+# both triangles are taken to the common edge frame (t, nu) (t along the edge,
+# nu in the mean tangent plane): q_(alpha beta gamma) = sum_abc q_abc
+# (E_a.e_alpha) (E_b.e_beta) (E_c.e_gamma), E_a the facet basis.  R_E =
+# sum_points w |q^1 - q^2|^2, w = C_R wg l_E / h_E (h_E = (A_1 + A_2) / l_E):
+# the interior-penalty part of the same seminorm.  The Hessian couples the
+# four nodes of the two triangles (strain_gradient.DKTStrainGradient adds the
+# pair of opposite vertices to the pattern).
+
+@njit(cache=True)
+def _edge_work():
+    return (np.zeros((3, 3)), np.zeros((3, 3, 2)), np.zeros((3, 2, 2)), np.zeros((3, 2)),
+            np.zeros((3, 2)), np.zeros(3), np.zeros((5, 9)), np.zeros((2, 9)),
+            np.zeros((9, 3)), np.zeros((9, 3)), np.zeros((9, 3)),
+            np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((3, 3)), np.zeros((3, 3)),
+            np.zeros((2, 3)),                  # 15 facet basis E_a
+            np.zeros((2, 8)),                  # 16 projected q of both sides
+            np.zeros((2, 8, 9, 3)),            # 17 their derivatives in the nodal vectors
+            np.zeros((2, 8, 9, 9)),            # 18 M_abc of both sides (index 4 a + 2 b + c)
+            np.zeros((2, 8, 8)),               # 19 projections P[side, c, abc]
+            np.zeros((2, 9, 3)),               # 20 gradient per side
+            np.zeros((36, 36)),                # 21 Hessian on the edge-node DOFs
+            np.zeros((9, 9)))                  # 22 jump-weighted sum of M_abc
+
+
+@njit(**KERNEL)
+def _side(e, lam, frame, tri, X, T, U, wk, s):
+    """Projected first derivatives of the strain (8) of triangle e at the
+    barycentric point lam, their derivatives in the element's 9 nodal vectors,
+    the matrices M_abc and the projection: slot s of wk[16:20]."""
+    Xe, Te, Q, gl, et, el, b, Cw = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5], wk[6], wk[7]
+    Xd, Xs, Xc, r1d, r1s, r2d, r2s, Ef = wk[8], wk[9], wk[10], wk[11], wk[12], wk[13], wk[14], wk[15]
+    val, dval, Ms, Ps = wk[16], wk[17], wk[18], wk[19]
+    for i in range(3):
+        nd = tri[e, i]
+        for c in range(3):
+            Xe[i, c] = X[nd, c]
+            Te[i, c, 0] = T[nd, c, 0]
+            Te[i, c, 1] = T[nd, c, 1]
+            ref = (X[nd, c], T[nd, c, 0], T[nd, c, 1])
+            for k in range(3):
+                Xc[3 * i + k, c] = U[nd, k, c]
+                Xd[3 * i + k, c] = U[nd, k, c] - ref[k]
+                Xs[3 * i + k, c] = U[nd, k, c] + ref[k]
+    element_chart(Xe, Te, Q, gl, et, el)
+    # facet basis E_1 = (X_1 - X_0)/|.|, E_2 = n x E_1 (as element_chart)
+    a0, a1, a2 = Xe[1, 0] - Xe[0, 0], Xe[1, 1] - Xe[0, 1], Xe[1, 2] - Xe[0, 2]
+    b0, b1, b2 = Xe[2, 0] - Xe[0, 0], Xe[2, 1] - Xe[0, 1], Xe[2, 2] - Xe[0, 2]
+    la = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    n0, n1, n2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    Ef[0, 0], Ef[0, 1], Ef[0, 2] = a0 / la, a1 / la, a2 / la
+    Ef[1, 0] = (n1 * Ef[0, 2] - n2 * Ef[0, 1]) / ln
+    Ef[1, 1] = (n2 * Ef[0, 0] - n0 * Ef[0, 2]) / ln
+    Ef[1, 2] = (n0 * Ef[0, 1] - n1 * Ef[0, 0]) / ln
+    point_map(lam, Q, gl, et, el, b, Cw)
+    for j in range(3):
+        for a in range(2):
+            sd = 0.0
+            ss = 0.0
+            for k in range(9):
+                sd += b[a, k] * Xd[k, j]
+                ss += b[a, k] * Xs[k, j]
+            r1d[a, j] = sd
+            r1s[a, j] = ss
+        for p in range(3):
+            sd = 0.0
+            ss = 0.0
+            for k in range(9):
+                sd += b[2 + p, k] * Xd[k, j]
+                ss += b[2 + p, k] * Xs[k, j]
+            r2d[p, j] = sd
+            r2s[p, j] = ss
+    for cc in range(8):
+        val[s, cc] = 0.0
+        for k in range(9):
+            for j in range(3):
+                dval[s, cc, k, j] = 0.0
+    for a in range(2):
+        for bb in range(2):
+            for c in range(2):
+                m = 4 * a + 2 * bb + c
+                ac, bc = _pair(a, c), _pair(bb, c)
+                # q_abc = (r_ac.r_b + r_a.r_bc) / 2, products polarized as in the interior
+                qv = 0.25 * (_dot(r2d[ac], r1s[bb]) + _dot(r2s[ac], r1d[bb])
+                             + _dot(r1d[a], r2s[bc]) + _dot(r1s[a], r2d[bc]))
+                Mm = Ms[s, m]
+                for k in range(9):
+                    for l in range(9):
+                        Mm[k, l] = 0.0
+                _sym_add(Mm, b[2 + ac], b[bb], 0.5)
+                _sym_add(Mm, b[a], b[2 + bc], 0.5)
+                for al in range(2):
+                    pa = _dot(Ef[a], frame[al])
+                    for be in range(2):
+                        pb = _dot(Ef[bb], frame[be])
+                        for ga in range(2):
+                            Ps[s, 4 * al + 2 * be + ga, m] = pa * pb * _dot(Ef[c], frame[ga])
+                for k in range(9):
+                    for j in range(3):
+                        mx = 0.0
+                        for l in range(9):
+                            mx += Mm[k, l] * Xc[l, j]
+                        for cc in range(8):
+                            dval[s, cc, k, j] += 2.0 * Ps[s, cc, m] * mx
+                for cc in range(8):
+                    val[s, cc] += Ps[s, cc, m] * qv
+
+
+@njit(**KERNEL)
+def edge_strain_gradient(j, mode, C, tri, X, T, U, edge_tri, edge_lam, edge_w, edge_frame,
+                         edge_node, wk):
+    """R_E of interior edge j; the gradient per side into wk[20] (2, 9, 3) and
+    the lower triangle of the Hessian on the edge-node DOFs (9 A + 3 slot +
+    component, A = edge_node[j, side, i] of the side's node i) into wk[21]."""
+    val, dval, Ms, Ps, gs, Hn, Mw = wk[16], wk[17], wk[18], wk[19], wk[20], wk[21], wk[22]
+    if mode >= 1:
+        for s in range(2):
+            for k in range(9):
+                for jj in range(3):
+                    gs[s, k, jj] = 0.0
+    if mode >= 2:
+        for p in range(36):
+            for q in range(36):
+                Hn[p, q] = 0.0
+    RE = 0.0
+    for g in range(edge_lam.shape[2]):
+        for s in range(2):
+            _side(edge_tri[j, s], edge_lam[j, s, g], edge_frame[j], tri, X, T, U, wk, s)
+        w = C * edge_w[j, g]
+        for cc in range(8):
+            J = val[0, cc] - val[1, cc]
+            RE += w * J * J
+        if mode == 0:
+            continue
+        for s in range(2):
+            sg = 1.0 if s == 0 else -1.0
+            for k in range(9):
+                for jj in range(3):
+                    acc = 0.0
+                    for cc in range(8):
+                        acc += (val[0, cc] - val[1, cc]) * dval[s, cc, k, jj]
+                    gs[s, k, jj] += 2.0 * w * sg * acc
+        if mode < 2:
+            continue
+        for s1 in range(2):
+            # jump-weighted second derivatives of this side: sum_c J_c P_c,abc 2 M_abc
+            sg1 = 1.0 if s1 == 0 else -1.0
+            for k in range(9):
+                for l in range(9):
+                    Mw[k, l] = 0.0
+            for m in range(8):
+                om = 0.0
+                for cc in range(8):
+                    om += (val[0, cc] - val[1, cc]) * Ps[s1, cc, m]
+                for k in range(9):
+                    for l in range(9):
+                        Mw[k, l] += 2.0 * sg1 * om * Ms[s1, m, k, l]
+            for k1 in range(9):
+                A = edge_node[j, s1, k1 // 3]
+                for j1 in range(3):
+                    P1 = 9 * A + 3 * (k1 % 3) + j1
+                    for s2 in range(2):
+                        sg = sg1 * (1.0 if s2 == 0 else -1.0)
+                        for k2 in range(9):
+                            B = edge_node[j, s2, k2 // 3]
+                            for j2 in range(3):
+                                P2 = 9 * B + 3 * (k2 % 3) + j2
+                                if P2 > P1:
+                                    continue
+                                acc = 0.0
+                                for cc in range(8):
+                                    acc += dval[s1, cc, k1, j1] * dval[s2, cc, k2, j2]
+                                h2 = sg * acc
+                                if s1 == s2 and j1 == j2:
+                                    h2 += Mw[k1, k2]
+                                Hn[P1, P2] += 2.0 * w * h2
+    return RE
+
+
+@njit(cache=True, parallel=True)
+def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, edge_tri, edge_lam, edge_w, edge_frame,
+                                 edge_node, edge_local, edge_oo, order, colour_start, emap,
+                                 RE, G, data):
+    """The edge terms into RE (per edge, overwritten), G (n, 3, 3) and data.
+    edge_local[j, A, s]: local index of edge node A in the triangle of side s
+    (-1: not in it); edge_oo[j, a, b]: data position of DOF a of the first
+    side's opposite vertex and DOF b of the second's (-1: fixed).  Edges are
+    coloured (no shared node within a colour)."""
+    for c in range(colour_start.shape[0] - 1):
+        first = colour_start[c]
+        n = colour_start[c + 1] - first
+        nchunk = min(n, 64)
+        for ch in prange(nchunk):
+            wk = _edge_work()
+            for jo in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
+                j = order[jo]
+                RE[j] = edge_strain_gradient(j, mode, C, tri, X, T, U, edge_tri, edge_lam,
+                                             edge_w, edge_frame, edge_node, wk)
+                if mode >= 1:
+                    gs = wk[20]
+                    for s in range(2):
+                        for i in range(3):
+                            nd = tri[edge_tri[j, s], i]
+                            for k in range(3):
+                                for cc in range(3):
+                                    G[nd, k, cc] += gs[s, 3 * i + k, cc]
+                if mode >= 2:
+                    Hn = wk[21]
+                    for P1 in range(36):
+                        A, a = P1 // 9, P1 % 9
+                        for P2 in range(P1 + 1):
+                            B, b = P2 // 9, P2 % 9
+                            found = False
+                            pos = -1
+                            for s in range(2):
+                                la, lb = edge_local[j, A, s], edge_local[j, B, s]
+                                if not found and la >= 0 and lb >= 0:
+                                    p, q = 9 * la + a, 9 * lb + b
+                                    if p < q:
+                                        p, q = q, p
+                                    pos = emap[edge_tri[j, s], p * (p + 1) // 2 + q]
+                                    found = True
+                            if not found:      # the two opposite vertices (A = 3 > B)
+                                pos = edge_oo[j, b, a]
+                            if pos >= 0:
+                                data[pos] += Hn[P1, P2]
