@@ -33,6 +33,7 @@ from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id
 from .solve import EvaluationError, Solvable
 from .strain_gradient import DKTStrainGradient
+from .validity import dkt_validity
 
 __all__ = ["Shell", "Result"]
 
@@ -689,6 +690,10 @@ class Result:
         self.y1 = s.Y1.copy()
         self.y2 = s.Y2.copy()
         self.energy = float(s.evaluate(s.free_state(), 0)[0]) if self.t is not None else np.nan
+        # per-element measures of the model's range (validity.py); warns for a converged state
+        self.validity = dkt_validity(s) if self.t is not None else None
+        if self.converged:
+            self.validity.warn()
 
     @property
     def displacement(self):

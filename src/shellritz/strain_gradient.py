@@ -98,20 +98,30 @@ def _square_parts(ks, kd, first):
     return val, grad, hess
 
 
-def _strain_derivative(parts, Dm, second):
-    """eps = f / (2 D) - 1/2 for f = sum of squares (parts) and the reference
-    value D (n, 3: D, D', D''): d eps / dS (second=False) or d2 eps / dS2,
-    S the reference arclength with dS/ds = sqrt(M), M (n, 3) likewise.
-    Returns value (n,), gradient (n, 8) and Hessian (n, 8, 8) in k."""
-    (val, grad, hess), (D, D1, D2), (M, M1, _) = parts, Dm[0], Dm[1]
-    e1 = np.stack([-D1 / (2 * D ** 2), 1 / (2 * D), 0 * D], 1)              # eps'  on (f, f', f'')
+def _strain_derivative(parts, shift, D, M, second):
+    """The elastic strain eps = (f - D) / (2 D) of f = a sum of squares (parts:
+    f - F, f' - F', f'' - F'' for its reference value F, with derivatives in
+    k) and the natural (grown) value D of f (n, 3: D, D', D''), shift = D - F:
+    d eps / dS (second=False) or d2 eps / dS2, S the reference arclength
+    (dS/ds = sqrt(M), M (n, 3) the reference metric).  Returns the value
+    (n,), gradient (n, 8) and Hessian (n, 8, 8) in k."""
+    val, grad, hess = parts
+    fd = val - shift                                                        # f - D and derivatives
+    D0, D1, D2 = D
+    e1 = np.stack([-D1 / (2 * D0 ** 2), 1 / (2 * D0), 0 * D0], 1)           # eps' on (f-D, ...)'
     if not second:
-        c = e1 / np.sqrt(M)[:, None]
+        c = e1 / np.sqrt(M[0])[:, None]
     else:
-        e2 = np.stack([-D2 / (2 * D ** 2) + D1 ** 2 / D ** 3, -D1 / D ** 2, 1 / (2 * D)], 1)
-        c = e2 / M[:, None] - e1 * (M1 / (2 * M ** 2))[:, None]             # d2 eps / dS2
-    return (np.einsum("nj,nj->n", c, val), np.einsum("nj,njk->nk", c, grad),
+        e2 = np.stack([-D2 / (2 * D0 ** 2) + D1 ** 2 / D0 ** 3, -D1 / D0 ** 2, 1 / (2 * D0)], 1)
+        c = e2 / M[0][:, None] - e1 * (M[1] / (2 * M[0] ** 2))[:, None]     # d2 eps / dS2
+    return (np.einsum("nj,nj->n", c, fd), np.einsum("nj,njk->nk", c, grad),
             np.einsum("nj,jkl->nkl", c, hess))
+
+
+def _squares(u0, u1, u2):
+    """|u|^2 and its first two derivatives from u, u', u'' (n, 3): (3, n)."""
+    dot = lambda x, y: (x * y).sum(-1)
+    return np.stack([dot(u0, u0), 2 * dot(u0, u1), 2 * (dot(u1, u1) + dot(u0, u2))])
 
 
 class LineStrainGradient:
@@ -153,21 +163,50 @@ class LineStrainGradient:
         K[B0:B0 + 4][:, [2, 3, 6, 7]] = R          # b
         return K
 
-    def _reference(self, kref):
+    def _metrics(self, kref, s):
+        """Reference and natural (grown) values, with two s-derivatives, of
+        |r_s|^2 and |r_phi|^2 at the parameters s: {name: (F, D)} with F, D
+        (3, n).  The natural tangents are G0 R_s and G0 R_phi, G0 = G0(t, s) of
+        the engine (its current t), s-derivatives of G0 by central differences
+        of the growth field (as the engine's dG0)."""
+        e = self.engine
         A, dA, ddA, dddA, B, dB, ddB, dddB = kref.T
-        M = np.stack([dA ** 2 + dB ** 2, 2 * (dA * ddA + dB * ddB),
-                      2 * (ddA ** 2 + dA * dddA + ddB ** 2 + dB * dddB)], 1).T
-        D = np.stack([A * A, 2 * A * dA, 2 * (dA * dA + A * ddA)], 1).T
-        return M, D
+        z = np.zeros_like(A)
+        ds = 1e-4 * (e.s[-1] - e.s[0])
+        G, Gp, Gm = (e._growth_at(e._t, s + d)[0] for d in (0.0, ds, -ds))
+        G1, G2 = (Gp - Gm) / (2 * ds), (Gp - 2 * G + Gm) / ds ** 2
+        grown = lambda R0, R1, R2: (np.einsum("nij,nj->ni", G, R0),
+                                    np.einsum("nij,nj->ni", G1, R0) + np.einsum("nij,nj->ni", G, R1),
+                                    np.einsum("nij,nj->ni", G2, R0) + 2 * np.einsum("nij,nj->ni", G1, R1)
+                                    + np.einsum("nij,nj->ni", G, R2))
+        Rs = (np.stack([dA, z, dB], 1), np.stack([ddA, z, ddB], 1), np.stack([dddA, z, dddB], 1))
+        out = {"mer": (_squares(*Rs), _squares(*grown(*Rs)))}
+        if e.azimuthal:
+            Rp = (np.stack([z, A, z], 1), np.stack([z, dA, z], 1), np.stack([z, ddA, z], 1))
+            out["hoop"] = (_squares(*Rp), _squares(*grown(*Rp)))
+        return out
 
-    def _components(self, k, kref, second):
-        """[(value, grad, hess)] of d^n eps/dS^n for the meridional strain and,
-        on a surface of revolution, the hoop strain."""
-        M, D = self._reference(kref)
+    def _natural_state(self):
+        """The metrics at the Gauss points and both sides of the nodes, for the
+        engine's current t (recomputed when t changes)."""
+        e = self.engine
+        if getattr(self, "_t", None) != e._t:
+            self._t = e._t
+            s_node = e.s[self.right]
+            self._nat = (self._metrics(self.kq_ref, e.sq), self._metrics(self.kl_ref, s_node),
+                         self._metrics(self.kr_ref, s_node))
+        return self._nat
+
+    def _components(self, k, kref, metrics, second):
+        """[(value, grad, hess)] of d^n eps/dS^n for the meridional elastic
+        strain and, on a surface of revolution (second derivatives), the hoop
+        strain."""
         ks, kd = k + kref, k - kref
-        out = [_strain_derivative(_square_parts(ks, kd, (A0 + 1, B0 + 1)), (M, M), second)]
-        if self.engine.azimuthal and second:
-            out.append(_strain_derivative(_square_parts(ks, kd, (A0,)), (D, M), second))
+        F, D = metrics["mer"]
+        out = [_strain_derivative(_square_parts(ks, kd, (A0 + 1, B0 + 1)), (D - F).T, D, F, second)]
+        if second and "hoop" in metrics:
+            Fh, Dh = metrics["hoop"]
+            out.append(_strain_derivative(_square_parts(ks, kd, (A0,)), (Dh - Fh).T, Dh, F, second))
         return out
 
     def evaluate(self, U, mode):
@@ -176,18 +215,19 @@ class LineStrainGradient:
         Sets ``per_element`` (R of each element; a node's jump term is shared
         by its two elements)."""
         e = self.engine
+        nat_q, nat_l, nat_r = self._natural_state()
         ue = U[e.elem_dofs]
         kq = np.einsum("qrd,qd->qr", self.Kq, ue[e.qelem])
         terms = [(self.w_q, v, g, H, self.Kq, e.elem_dofs[e.qelem])
-                 for v, g, H in self._components(kq, self.kq_ref, True)]
+                 for v, g, H in self._components(kq, self.kq_ref, nat_q, True)]
         per = np.zeros(e.n_elements)
         for w, v, *_ in terms:
             per += np.bincount(e.qelem, w * v * v, minlength=e.n_elements)
         if len(self.left):
             kl = np.einsum("qrd,qd->qr", self.Kl, ue[self.left])
             kr = np.einsum("qrd,qd->qr", self.Kr, ue[self.right])
-            (vl, gl, Hl), = self._components(kl, self.kl_ref, False)
-            (vr, gr, Hr), = self._components(kr, self.kr_ref, False)
+            (vl, gl, Hl), = self._components(kl, self.kl_ref, nat_l, False)
+            (vr, gr, Hr), = self._components(kr, self.kr_ref, nat_r, False)
             nj = len(vl)
             Kj = np.zeros((nj, 16, 16))
             Kj[:, 0:8, 0:8] = self.Kl
@@ -296,12 +336,12 @@ class DKTStrainGradient:
         """Add R to the element energies Le, the gradient G (n, 3, 3) and the
         Hessian values data of the shell's assembly; sets ``per_element``
         (interior term plus half of each adjacent edge term)."""
-        tri, X, T = shell.mesh.triangles, shell.X, shell.frames
+        tri, X, T, G0 = shell.mesh.triangles, shell.X, shell.frames, shell._Gt0
         Re = self.per_element
-        add_dkt_strain_gradient(mode, self.C, tri, X, T, U, shell.bary, shell.wts, shell._order,
+        add_dkt_strain_gradient(mode, self.C, tri, X, T, U, G0, shell.bary, shell.wts, shell._order,
                                 shell._colour_start, shell._emap, numba.get_num_threads(),
                                 Re, Le, G, data)
-        add_dkt_edge_strain_gradient(mode, self.C, tri, X, T, U, self.edge_tri, self.edge_lam,
+        add_dkt_edge_strain_gradient(mode, self.C, tri, X, T, U, G0, self.edge_tri, self.edge_lam,
                                      self.edge_w, self.edge_frame, self.edge_node, self.edge_local,
                                      self.edge_oo, self.edge_order, self.edge_colour_start,
                                      shell._emap, self._RE, G, data)

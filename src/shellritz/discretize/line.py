@@ -22,6 +22,7 @@ from ..materials import Law
 from ..model import check_thickness, level_id
 from ..solve import EvaluationError, Solvable
 from .. import strain_gradient
+from ..validity import line_validity
 
 GAUSS_POINTS = 5
 
@@ -518,6 +519,10 @@ class LineResult:
         self.y1 = e.Y1.copy()
         self.y2 = e.Y2.copy()
         self.energy = float(e.evaluate(e.free_state(), 0)[0]) if self.t is not None else np.nan
+        # per-element measures of the model's range (validity.py); warns for a converged state
+        self.validity = line_validity(e) if self.t is not None else None
+        if self.converged:
+            self.validity.warn()
 
     def at(self, s):
         """(a, b) of the solved curve at parameters s (Hermite interpolation)."""

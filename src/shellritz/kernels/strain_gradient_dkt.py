@@ -1,19 +1,21 @@
 """The strain-gradient term of strain_gradient.py on DKT triangles.
 
 In the orthonormal coordinates xi of an element's flat facet (discretize/dkt.py)
-the membrane strain has the components e_ab = (r_a . r_b - R_a . R_b) / 2; the
-term is
+the elastic membrane strain has the components e_ab = (r_a . r_b - u_a . u_b) / 2,
+u_a = G0 R_a the grown reference tangents (G0 interpolated linearly from the
+nodes, as the point kernel does); the term is
 
     R_e = C_R int_e sum_abcd (d2 e_ab / dxi_c dxi_d)^2 dA,
-    d2 e_ab / dxi_c dxi_d = (r_acd . r_b + r_ac . r_bd + r_ad . r_bc + r_a . r_bcd) / 2 - (same of R),
+    d2 (r_a . r_b) / dxi_c dxi_d = r_acd . r_b + r_ac . r_bd + r_ad . r_bc + r_a . r_bcd,
 
 with r_a, r_ab the DKT fields at the quadrature points and r_abc = d r_ab /
 dxi_c, constant in the element (r_ab is linear in the barycentric
 coordinates: the sum over the vertices of grad(lambda_i) times r_ab there).
-Each component is a bilinear form in the element's 9 nodal 3-vectors X,
-Q = X : M X - X_ref : M X_ref, evaluated as (X - X_ref) : M (X + X_ref) so
-that it vanishes exactly at the reference; dQ/dX = 2 M X, d2Q/dX2 = 2 M (x) I3,
-so R_e, its gradient and Hessian are exact.  Only the element interiors are
+Each component is a bilinear form in the element's 9 nodal 3-vectors X less a
+constant, Q = X : M X - X_ref : M X_ref - s, evaluated as (X - X_ref) : M (X +
+X_ref) - s so that it vanishes exactly at the reference when there is no
+growth (s = the same derivatives of u_a . u_b - R_a . R_b);
+dQ/dX = 2 M X, d2Q/dX2 = 2 M (x) I3, so R_e, its gradient and Hessian are exact.  Only the element interiors are
 measured (no jump terms across edges, which would couple the two
 triangles of an edge beyond the Hessian pattern; docs/validity.md says what
 that leaves).
@@ -44,7 +46,8 @@ def _work():
             np.zeros((5, 9)), np.zeros(3),                          # vertex map, barycentric
             np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((3, 2, 3)), np.zeros((3, 2, 3)),  # r_a, r_abc (d, s)
             np.zeros((3, 3)), np.zeros((3, 3)),                     # r_ab (d, s)
-            np.zeros((9, 9)), np.zeros((9, 3)))                     # M, dQ/dX
+            np.zeros((9, 9)), np.zeros((9, 3)),                     # M, dQ/dX
+            np.zeros((9, 3)))                                       # X_ref
 
 
 @njit(**KERNEL, inline="always")
@@ -60,12 +63,99 @@ def _sym_add(M, cu, cv, f):
             M[k, l] += 0.5 * f * (cu[k] * cv[l] + cv[k] * cu[l])
 
 
+@njit(**KERNEL, inline="always")
+def _mv(G, x, out):
+    for i in range(3):
+        out[i] = G[i, 0] * x[0] + G[i, 1] * x[1] + G[i, 2] * x[2]
+
+
 @njit(**KERNEL)
-def element_strain_gradient(e, mode, C, tri, X, T, U, bary, wts, ge, ke, wk):
+def _grown(G0n, tri, e, lam, gl, b, D3, Xr, gw, second):
+    """Grown reference tangents at a point and their xi-derivatives (first,
+    and second if asked), with and without growth: gw = (G, dG (2, 3, 3),
+    R_a (2, 3), R_ab (3, 3), R_abc (3, 2, 3), u (2, 3), du (2, 2, 3),
+    ddu (2, 2, 2, 3), tmp (3)); dG0 is constant in the element (linear
+    interpolation), so d2 u_a = dG_c R_ad + dG_d R_ac + G R_acd."""
+    G, dG, Ra, Rab, Rabc, u, du, ddu, tmp = gw
+    for r in range(3):
+        for c in range(3):
+            # relative to node 0, so that equal nodal values give G0 and dG0 = 0 exactly
+            g0 = G0n[tri[e, 0], r, c]
+            G[r, c] = g0
+            dG[0, r, c] = 0.0
+            dG[1, r, c] = 0.0
+            for i in range(1, 3):
+                g = G0n[tri[e, i], r, c] - g0
+                G[r, c] += lam[i] * g
+                dG[0, r, c] += gl[i, 0] * g
+                dG[1, r, c] += gl[i, 1] * g
+    for j in range(3):
+        for a in range(2):
+            acc = 0.0
+            for k in range(9):
+                acc += b[a, k] * Xr[k, j]
+            Ra[a, j] = acc
+        for p in range(3):
+            acc = 0.0
+            for k in range(9):
+                acc += b[2 + p, k] * Xr[k, j]
+            Rab[p, j] = acc
+            if second:
+                for c in range(2):
+                    acc = 0.0
+                    for k in range(9):
+                        acc += D3[p, c, k] * Xr[k, j]
+                    Rabc[p, c, j] = acc
+    for a in range(2):
+        _mv(G, Ra[a], u[a])
+        for c in range(2):
+            _mv(dG[c], Ra[a], tmp)
+            _mv(G, Rab[_pair(a, c)], du[a, c])
+            for j in range(3):
+                du[a, c, j] += tmp[j]
+            if second:
+                for d in range(2):
+                    _mv(G, Rabc[_pair(a, c), d], ddu[a, c, d])
+                    _mv(dG[c], Rab[_pair(a, d)], tmp)
+                    for j in range(3):
+                        ddu[a, c, d, j] += tmp[j]
+                    _mv(dG[d], Rab[_pair(a, c)], tmp)
+                    for j in range(3):
+                        ddu[a, c, d, j] += tmp[j]
+
+
+@njit(**KERNEL, inline="always")
+def _shift_q(gw, a, b, c):
+    """(d_c (u_a . u_b) - d_c (R_a . R_b)) / 2."""
+    Ra, Rab, u, du = gw[2], gw[3], gw[5], gw[6]
+    return 0.5 * ((_dot(du[a, c], u[b]) + _dot(u[a], du[b, c]))
+                  - (_dot(Rab[_pair(a, c)], Ra[b]) + _dot(Ra[a], Rab[_pair(b, c)])))
+
+
+@njit(**KERNEL, inline="always")
+def _shift_Q(gw, a, b, c, d):
+    """(d_cd (u_a . u_b) - d_cd (R_a . R_b)) / 2."""
+    Ra, Rab, Rabc, u, du, ddu = gw[2], gw[3], gw[4], gw[5], gw[6], gw[7]
+    grown = (_dot(ddu[a, c, d], u[b]) + _dot(du[a, c], du[b, d]) + _dot(du[a, d], du[b, c])
+             + _dot(u[a], ddu[b, c, d]))
+    ref = (_dot(Rabc[_pair(a, c), d], Ra[b]) + _dot(Rab[_pair(a, c)], Rab[_pair(b, d)])
+           + _dot(Rab[_pair(a, d)], Rab[_pair(b, c)]) + _dot(Ra[a], Rabc[_pair(b, c), d]))
+    return 0.5 * (grown - ref)
+
+
+@njit(cache=True)
+def _growth_work():
+    return (np.zeros((3, 3)), np.zeros((2, 3, 3)), np.zeros((2, 3)), np.zeros((3, 3)),
+            np.zeros((3, 2, 3)), np.zeros((2, 3)), np.zeros((2, 2, 3)), np.zeros((2, 2, 2, 3)),
+            np.zeros(3))
+
+
+@njit(**KERNEL)
+def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk, gw):
     """R_e of element e; ge (9, 3) and the upper triangle of ke (27, 27) if
-    mode asks (overwritten)."""
+    mode asks (overwritten).  G0n: nodal growth G0 (n, 3, 3)."""
     (Xe, Te, Q, gl, et, el, b, Cw, Xd, Xs, Xc, D3, bv, lam, r1d, r1s, r3d, r3s, r2d, r2s,
-     M, dQ) = wk
+     M, dQ, Xr) = wk
     for i in range(3):
         nd = tri[e, i]
         for c in range(3):
@@ -74,6 +164,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, bary, wts, ge, ke, wk):
             Te[i, c, 1] = T[nd, c, 1]
             ref = (X[nd, c], T[nd, c, 0], T[nd, c, 1])
             for s in range(3):
+                Xr[3 * i + s, c] = ref[s]
                 Xc[3 * i + s, c] = U[nd, s, c]
                 Xd[3 * i + s, c] = U[nd, s, c] - ref[s]
                 Xs[3 * i + s, c] = U[nd, s, c] + ref[s]
@@ -112,6 +203,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, bary, wts, ge, ke, wk):
     Re = 0.0
     for iq in range(bary.shape[0]):
         point_map(bary[iq], Q, gl, et, el, b, Cw)
+        _grown(G0n, tri, e, bary[iq], gl, b, D3, Xr, gw, True)
         w = C * wts[iq] * area
         for j in range(3):
             for a in range(2):
@@ -141,6 +233,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, bary, wts, ge, ke, wk):
                               + _dot(r2d[ac], r2s[bd]) + _dot(r2s[ac], r2d[bd])
                               + _dot(r2d[ad], r2s[bc]) + _dot(r2s[ad], r2d[bc])
                               + _dot(r1d[a], r3s[bc, d]) + _dot(r1s[a], r3d[bc, d]))
+                val -= _shift_Q(gw, a, bb, c, d)
                 f = w * _MULT[pab] * _MULT[pcd]
                 Re += f * val * val
                 if mode == 0:
@@ -173,7 +266,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, bary, wts, ge, ke, wk):
 
 
 @njit(cache=True, parallel=True)
-def add_dkt_strain_gradient(mode, C, tri, X, T, U, bary, wts, order, colour_start, emap,
+def add_dkt_strain_gradient(mode, C, tri, X, T, U, G0n, bary, wts, order, colour_start, emap,
                             n_threads, Re, Le, G, data):
     """R_e of every element into Re (overwritten) and added to the element
     energies Le; for mode >= 1 the gradient added to G (n, 3, 3), for mode >= 2
@@ -186,11 +279,13 @@ def add_dkt_strain_gradient(mode, C, tri, X, T, U, bary, wts, order, colour_star
         nchunk = min(n, 4 * n_threads)
         for ch in prange(nchunk):
             wk = _work()
+            gw = _growth_work()
             ge = np.zeros((9, 3))
             ke = np.zeros((27, 27))
             for j in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
                 e = order[j]
-                Re[e] = element_strain_gradient(e, mode, C, tri, X, T, U, bary, wts, ge, ke, wk)
+                Re[e] = element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke,
+                                                wk, gw)
                 Le[e] += Re[e]
                 if mode >= 1:
                     for i in range(3):
@@ -234,17 +329,19 @@ def _edge_work():
             np.zeros((2, 8, 8)),               # 19 projections P[side, c, abc]
             np.zeros((2, 9, 3)),               # 20 gradient per side
             np.zeros((36, 36)),                # 21 Hessian on the edge-node DOFs
-            np.zeros((9, 9)))                  # 22 jump-weighted sum of M_abc
+            np.zeros((9, 9)),                  # 22 jump-weighted sum of M_abc
+            np.zeros((9, 3)),                  # 23 X_ref
+            np.zeros((3, 2, 9)))               # 24 (no third derivatives at edges)
 
 
 @njit(**KERNEL)
-def _side(e, lam, frame, tri, X, T, U, wk, s):
+def _side(e, lam, frame, tri, X, T, U, G0n, wk, gw, s):
     """Projected first derivatives of the strain (8) of triangle e at the
     barycentric point lam, their derivatives in the element's 9 nodal vectors,
     the matrices M_abc and the projection: slot s of wk[16:20]."""
     Xe, Te, Q, gl, et, el, b, Cw = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5], wk[6], wk[7]
     Xd, Xs, Xc, r1d, r1s, r2d, r2s, Ef = wk[8], wk[9], wk[10], wk[11], wk[12], wk[13], wk[14], wk[15]
-    val, dval, Ms, Ps = wk[16], wk[17], wk[18], wk[19]
+    val, dval, Ms, Ps, Xr = wk[16], wk[17], wk[18], wk[19], wk[23]
     for i in range(3):
         nd = tri[e, i]
         for c in range(3):
@@ -253,6 +350,7 @@ def _side(e, lam, frame, tri, X, T, U, wk, s):
             Te[i, c, 1] = T[nd, c, 1]
             ref = (X[nd, c], T[nd, c, 0], T[nd, c, 1])
             for k in range(3):
+                Xr[3 * i + k, c] = ref[k]
                 Xc[3 * i + k, c] = U[nd, k, c]
                 Xd[3 * i + k, c] = U[nd, k, c] - ref[k]
                 Xs[3 * i + k, c] = U[nd, k, c] + ref[k]
@@ -268,6 +366,7 @@ def _side(e, lam, frame, tri, X, T, U, wk, s):
     Ef[1, 1] = (n2 * Ef[0, 0] - n0 * Ef[0, 2]) / ln
     Ef[1, 2] = (n0 * Ef[0, 1] - n1 * Ef[0, 0]) / ln
     point_map(lam, Q, gl, et, el, b, Cw)
+    _grown(G0n, tri, e, lam, gl, b, wk[24], Xr, gw, False)
     for j in range(3):
         for a in range(2):
             sd = 0.0
@@ -297,7 +396,7 @@ def _side(e, lam, frame, tri, X, T, U, wk, s):
                 ac, bc = _pair(a, c), _pair(bb, c)
                 # q_abc = (r_ac.r_b + r_a.r_bc) / 2, products polarized as in the interior
                 qv = 0.25 * (_dot(r2d[ac], r1s[bb]) + _dot(r2s[ac], r1d[bb])
-                             + _dot(r1d[a], r2s[bc]) + _dot(r1s[a], r2d[bc]))
+                             + _dot(r1d[a], r2s[bc]) + _dot(r1s[a], r2d[bc])) - _shift_q(gw, a, bb, c)
                 Mm = Ms[s, m]
                 for k in range(9):
                     for l in range(9):
@@ -322,8 +421,8 @@ def _side(e, lam, frame, tri, X, T, U, wk, s):
 
 
 @njit(**KERNEL)
-def edge_strain_gradient(j, mode, C, tri, X, T, U, edge_tri, edge_lam, edge_w, edge_frame,
-                         edge_node, wk):
+def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w, edge_frame,
+                         edge_node, wk, gw):
     """R_E of interior edge j; the gradient per side into wk[20] (2, 9, 3) and
     the lower triangle of the Hessian on the edge-node DOFs (9 A + 3 slot +
     component, A = edge_node[j, side, i] of the side's node i) into wk[21]."""
@@ -340,7 +439,7 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, edge_tri, edge_lam, edge_w, e
     RE = 0.0
     for g in range(edge_lam.shape[2]):
         for s in range(2):
-            _side(edge_tri[j, s], edge_lam[j, s, g], edge_frame[j], tri, X, T, U, wk, s)
+            _side(edge_tri[j, s], edge_lam[j, s, g], edge_frame[j], tri, X, T, U, G0n, wk, gw, s)
         w = C * edge_w[j, g]
         for cc in range(8):
             J = val[0, cc] - val[1, cc]
@@ -393,9 +492,9 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, edge_tri, edge_lam, edge_w, e
 
 
 @njit(cache=True, parallel=True)
-def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, edge_tri, edge_lam, edge_w, edge_frame,
-                                 edge_node, edge_local, edge_oo, order, colour_start, emap,
-                                 RE, G, data):
+def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w,
+                                 edge_frame, edge_node, edge_local, edge_oo, order, colour_start,
+                                 emap, RE, G, data):
     """The edge terms into RE (per edge, overwritten), G (n, 3, 3) and data.
     edge_local[j, A, s]: local index of edge node A in the triangle of side s
     (-1: not in it); edge_oo[j, a, b]: data position of DOF a of the first
@@ -407,10 +506,11 @@ def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, edge_tri, edge_lam, edge
         nchunk = min(n, 64)
         for ch in prange(nchunk):
             wk = _edge_work()
+            gw = _growth_work()
             for jo in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
                 j = order[jo]
-                RE[j] = edge_strain_gradient(j, mode, C, tri, X, T, U, edge_tri, edge_lam,
-                                             edge_w, edge_frame, edge_node, wk)
+                RE[j] = edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam,
+                                             edge_w, edge_frame, edge_node, wk, gw)
                 if mode >= 1:
                     gs = wk[20]
                     for s in range(2):
