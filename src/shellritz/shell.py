@@ -32,7 +32,7 @@ from .materials import Law
 from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id
 from .solve import EvaluationError, Solvable
-from .strain_gradient import DKTStrainGradient
+from .strain_gradient import DKTStrainGradient, dkt_active_elements
 from .validity import dkt_validity
 
 __all__ = ["Shell", "Result"]
@@ -89,7 +89,9 @@ class Shell(Solvable):
         self.bary, self.wts = rule(quadrature)
         # the h^5 strain-gradient term that keeps the bending levels bounded
         # below on fine meshes (strain_gradient.py, docs/validity.md)
-        self.strain_gradient = None if level == "membrane" else DKTStrainGradient(mesh, material, self.h)
+        active = dkt_active_elements(mesh, self.h)
+        self.strain_gradient = (None if level == "membrane" or not active.any()
+                                else DKTStrainGradient(mesh, material, self.h, active))
         n = mesh.n_nodes
         self.X = mesh.vertices
         self.frames = mesh.frames.copy()

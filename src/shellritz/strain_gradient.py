@@ -266,24 +266,42 @@ class LineStrainGradient:
         return R, g, K
 
 
+def dkt_active_elements(mesh, h):
+    """The triangles that carry the term: longest edge shorter than h.  A
+    coarser element cannot hold the short in-plane waves the term stabilizes
+    (their energy becomes negative only beyond k h = 19 at 5 % compression,
+    k h = 8 near 30 %; an element of size h resolves k h up to about 10):
+    clamped compressed plates with elements of size h have no negative
+    Hessian eigenvalue without the term up to 25 % compression
+    (docs/validity.md).  Skipping them keeps the cost and the Hessian pattern
+    of thin-shell meshes (elements larger than h) unchanged."""
+    tri, X = mesh.triangles, mesh.vertices
+    edges = np.stack([X[tri[:, (k + 1) % 3]] - X[tri[:, k]] for k in range(3)], axis=1)
+    return np.linalg.norm(edges, axis=2).max(axis=1) < h
+
+
 class DKTStrainGradient:
-    """R of the module docstring for a DKT Shell: element interiors and the
-    jumps across interior edges (kernels/strain_gradient_dkt.py).
+    """R of the module docstring for a DKT Shell: interiors of the active
+    elements (dkt_active_elements) and the jumps across the interior edges
+    between two of them (kernels/strain_gradient_dkt.py).
 
     The jump terms couple the two vertices opposite an edge, which share no
-    triangle: ``virtual_triangles`` lists, per interior edge, a triangle
+    triangle: ``virtual_triangles`` lists, per such edge, a triangle
     (opposite 1, opposite 2, a shared vertex) that the Hessian pattern must
     include; ``set_pattern`` takes their element map."""
 
     EDGE_POINTS = 2
 
-    def __init__(self, mesh, law, h):
+    def __init__(self, mesh, law, h, active):
         self.C = coefficient(law, h)
+        self.active = np.ascontiguousarray(active, dtype=np.bool_)
         tri, X = mesh.triangles, mesh.vertices
         eoh = mesh.edge_of_halfedge.ravel()
         order = np.argsort(eoh, kind="stable")
         pair = np.where(eoh[order][1:] == eoh[order][:-1])[0]
         h1, h2 = order[pair], order[pair + 1]          # the two half-edges of each interior edge
+        both = self.active[h1 // 3] & self.active[h2 // 3]
+        h1, h2 = h1[both], h2[both]
         self.edge_tri = np.ascontiguousarray(np.c_[h1 // 3, h2 // 3])
         k1, k2 = h1 % 3, h2 % 3                        # half-edge k joins local vertices k, k+1
         nE = len(h1)
@@ -338,9 +356,9 @@ class DKTStrainGradient:
         (interior term plus half of each adjacent edge term)."""
         tri, X, T, G0 = shell.mesh.triangles, shell.X, shell.frames, shell._Gt0
         Re = self.per_element
-        add_dkt_strain_gradient(mode, self.C, tri, X, T, U, G0, shell.bary, shell.wts, shell._order,
-                                shell._colour_start, shell._emap, numba.get_num_threads(),
-                                Re, Le, G, data)
+        add_dkt_strain_gradient(mode, self.C, self.active, tri, X, T, U, G0, shell.bary, shell.wts,
+                                shell._order, shell._colour_start, shell._emap,
+                                numba.get_num_threads(), Re, Le, G, data)
         add_dkt_edge_strain_gradient(mode, self.C, tri, X, T, U, G0, self.edge_tri, self.edge_lam,
                                      self.edge_w, self.edge_frame, self.edge_node, self.edge_local,
                                      self.edge_oo, self.edge_order, self.edge_colour_start,
