@@ -37,7 +37,8 @@ from shellritz.discretize.axisym import AxisymmetricShell  # noqa: E402
 from shellritz.discretize.planestrain import PlaneStrainShell  # noqa: E402
 from shellritz.model import evaluate_point  # noqa: E402
 from shellritz.scenes import RevolutionScene  # noqa: E402
-from shellritz.solve import SolveError, factorize_if_positive_definite, symmetric_from_lower  # noqa: E402
+from shellritz.linalg import negative_eigenvalues  # noqa: E402
+from shellritz.solve import SolveError  # noqa: E402
 from test_validity import (LAW, cone_scene, fold_scene, inplane, shell_symbol,  # noqa: E402
                            slab_symbol_3d, strain_gradient_symbol)
 
@@ -138,7 +139,7 @@ def negative_pivots(engine):
     engine._setup()
     engine.set_parameter(1.0)
     _, _, K = engine.evaluate(engine.free_state(), 2)
-    return factorize_if_positive_definite(symmetric_from_lower(K))[1]
+    return negative_eigenvalues(K)
 
 
 def inertia(quick):
@@ -237,18 +238,18 @@ def critical_path(name, h, n):
     eng = line_engine(SCENES[name](h), n, cured=False)
     states = []
     from shellritz import solve as solve_mod
-    orig = solve_mod.newton          # sampled after every converged Newton solve
+    orig = solve_mod.equilibrium          # sampled after every converged step
 
-    def newton(problem, t, opts, history, g_ref):
-        ok = orig(problem, t, opts, history, g_ref)
-        if ok and problem is eng:
+    def equilibrium(problem, t, *args):
+        ok = orig(problem, t, *args)
+        if ok:
             states.append((t, critical_element_size(eng)))
         return ok
-    solve_mod.newton = newton
+    solve_mod.equilibrium = equilibrium
     try:
         eng.solve(steps=10, verbose=False)
     finally:
-        solve_mod.newton = orig
+        solve_mod.equilibrium = orig
     return [{"t": t, "l_c_over_h": l / h} for t, l in states]
 
 
@@ -379,10 +380,15 @@ def main():
             if ok:
                 res["critical_path"][key] = {"n": max(ok), "path": critical_path(name, h, max(ok))}
             res["scenes_cured"][key] = cured_runs(name, h, sizes, s_common)
+            write(res)                       # partial results survive an interrupted run
     res["dkt"] = dkt_runs([16, 32] if args.quick else [16, 32, 64])
+    write(res)
+    chart(res, RESULTS / "validity.png")
+
+
+def write(res):
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "validity.json").write_text(json.dumps(res, indent=1, default=float))
-    chart(res, RESULTS / "validity.png")
 
 
 if __name__ == "__main__":

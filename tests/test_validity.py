@@ -373,3 +373,26 @@ def test_triangle_engine_converges_with_elements_down_to_a_quarter_thickness():
     axisym = solve_axisym(cone_scene(0.2), 256).raw.energy
     d = np.abs(np.array(E) - axisym)
     assert d[2] < 0.01 * axisym, (E, axisym)
+
+
+def test_triangle_results_report_curvature_and_growth_gradient_per_element():
+    """DKT Result.validity: a cylinder of radius 1 at h = 0.6 (kappa h = 0.6 in
+    every element, above the limit 0.5) with a through-thickness growth
+    gradient h |G0^-1 G1| = 0.6 on one node only."""
+    from shellritz import Shell, shapes
+    from shellritz.validity import LIMITS, ValidityWarning
+    mesh = shapes.cylinder(16, 4, 1.0, 1.0)
+    G1 = np.zeros((mesh.n_nodes, 3, 3))
+    G1[5] = np.diag([1.0, 0.0, 0.0])                 # h |G1| = 0.6 at node 5
+    with pytest.warns(UserWarning, match=r"h \|G1\| << \|G0\|"):
+        sh = Shell(mesh, 0.6, LAW).set_growth(G0=np.eye(3), G1=G1)
+    sh.clamp(np.arange(mesh.n_nodes))                # stays the reference cylinder
+    with pytest.warns(ValidityWarning, match=r"kappa h .* in 128 elements"):
+        r = sh.solve(steps=1, verbose=False)
+    V = r.validity
+    # the DKT curvature of the 16-sided cylinder: 1.040 (observed 0.624 / 0.6, the same in every element)
+    assert np.ptp(V.curvature_h) < 1e-9 and 0.6 < V.curvature_h[0] < 0.63, V.curvature_h[0]
+    touching = np.where((mesh.triangles == 5).any(axis=1))[0]
+    assert set(V.flagged["growth_gradient_h"]) == set(touching)
+    assert V.growth_gradient_h[touching] == pytest.approx(0.6)
+    assert len(V.flagged["curvature_h"]) == len(mesh.triangles) and LIMITS["curvature_h"] == 0.5
