@@ -22,7 +22,7 @@ in-plane wave at small strain it is exactly the O(h^5 k^6) term of the 3D
 slab (checked in bench/validity.py); for smooth fields it is O(h^5), the
 order the model neglects, and it vanishes for uniform strain and rigid
 motions.  With it the in-plane symbol stays positive for compressive stresses
-up to |Sigma| = 0.89 E' / c^2.
+up to |Sigma| = 0.89 E' / c.
 
 This module holds the coefficient and the line-engine (C1 Hermite) version:
 at the Gauss points the second derivatives along the meridian of the
