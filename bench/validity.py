@@ -16,7 +16,8 @@
    (cone, h = 0.2, l = h ... h/4).
 
 Writes bench/results/validity.json and validity.png.
-Run: python bench/validity.py [--quick]   (--quick: parts 1-3 and n <= 128)
+Run: python bench/validity.py [--quick]   (--quick: n <= 128, DKT n <= 32)
+     python bench/validity.py --tables     (markdown tables of the last results)
 """
 
 import argparse
@@ -361,10 +362,42 @@ def chart(res, path):
     fig.savefig(path, dpi=110)
 
 
+def tables(res):
+    """Markdown tables of the refinement study (docs/validity.md section 6)."""
+    out = ["| scene | h | n = 32 | 64 | 128 | 256 | observed rate |", "|---|---|---|---|---|---|---|"]
+    for key, rows in res["scenes_cured"].items():
+        name, h = key.split(" h=")
+        for what in ("energy", "profile"):
+            errs = [r[f"{what}_error"] for r in rows[:-1]]
+            rates = [r[f"{what}_rate"] for r in rows if f"{what}_rate" in r]
+            out.append(f"| {name} ({what}) | {h} | " + " | ".join(f"{e:.1e}" for e in errs)
+                       + " | " + ", ".join(f"{q:.1f}" for q in rates) + " |")
+    out += ["", "| scene | h | without the term: converges up to n | fails at n (last t) | "
+            "with the term: Newton iterations n = 32 ... 512 |", "|---|---|---|---|---|"]
+    for key, rows in res["scenes_uncured"].items():
+        name, h = key.split(" h=")
+        ok = [r["n"] for r in rows if r["converged"]]
+        bad = [f"{r['n']} ({r['last_t']:.3f})" for r in rows if not r["converged"]]
+        its = [str(r["iterations"]) for r in res["scenes_cured"][key]]
+        out.append(f"| {name} | {h} | {max(ok) if ok else '—'} | {', '.join(bad) or '—'} | {', '.join(its)} |")
+    if "dkt" in res:
+        out += ["", "| triangles, cone h = 0.2 | n | l / h | converged | energy (quarter) | iterations |",
+                "|---|---|---|---|---|---|"]
+        for r in res["dkt"]:
+            out.append(f"| {'with' if r['cured'] else 'without'} the term | {r['n']} | {r['l_over_h']:.2f} | "
+                       f"{r['converged'] if r['converged'] else 'no, t = %.3f' % r['last_t']} | "
+                       f"{r.get('energy_quarter', float('nan')):.6e} | {r.get('iterations', '—')} |")
+    return "\n".join(out)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--tables", action="store_true", help="print the tables of results/validity.json")
     args = ap.parse_args()
+    if args.tables:
+        print(tables(json.loads((RESULTS / "validity.json").read_text())))
+        return
     res = {"machine": machine(), "law": "neo-Hookean C = 1, nu = 0.4", "quick": args.quick}
     res["symbol"] = symbols()
     res["candidates"] = candidates()

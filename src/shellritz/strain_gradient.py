@@ -34,7 +34,6 @@ kernels/strain_gradient_dkt.py.
 
 import numba
 import numpy as np
-import scipy.sparse as sp
 
 from .discretize import line
 from .kernels.strain_gradient_dkt import add_dkt_edge_strain_gradient, add_dkt_strain_gradient
@@ -259,11 +258,14 @@ class LineStrainGradient:
                 vals.append(Hd.ravel())
         if mode == 1:
             return R, g, None
+        # triplets (free row, free column, value) of the lower triangle: the
+        # engine assembles them with its own into one matrix, so that the
+        # pattern stays the same at every evaluation (the linear solver keeps
+        # the pattern of the first Hessian; adding two CSR matrices drops the
+        # entries that happen to cancel)
         fr, fc = e._fidx[np.concatenate(rows)], e._fidx[np.concatenate(cols)]
         keep = (fr >= 0) & (fc >= 0) & (fr >= fc)
-        nf = len(e.free)
-        K = sp.csr_matrix((np.concatenate(vals)[keep], (fr[keep], fc[keep])), shape=(nf, nf))
-        return R, g, K
+        return R, g, (fr[keep], fc[keep], np.concatenate(vals)[keep])
 
 
 def dkt_active_elements(mesh, h):

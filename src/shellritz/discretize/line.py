@@ -471,11 +471,12 @@ class LineShell(Solvable):
             vals = vals - self._p_t * HV
         fr, fc = self._fidx[rows], self._fidx[cols]
         keep = (fr >= 0) & (fc >= 0) & (fr >= fc)
-        nf = len(self.free)
-        K = sp.csr_matrix((vals[keep], (fr[keep], fc[keep])), shape=(nf, nf))
-        K.sum_duplicates()
+        fr, fc, vals = fr[keep], fc[keep], vals[keep]
         if self.strain_gradient is not None:
-            K = K + KR
+            fr, fc, vals = np.r_[fr, KR[0]], np.r_[fc, KR[1]], np.r_[vals, KR[2]]
+        nf = len(self.free)
+        K = sp.csr_matrix((vals, (fr, fc)), shape=(nf, nf))
+        K.sum_duplicates()
         return E, g[self.free], K
 
     def _volume(self, U, mode):
