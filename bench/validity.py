@@ -364,7 +364,8 @@ def chart(res, path):
 
 def tables(res):
     """Markdown tables of the refinement study (docs/validity.md section 6)."""
-    out = ["| scene | h | n = 32 | 64 | 128 | 256 | observed rate |", "|---|---|---|---|---|---|---|"]
+    out = ["| scene (difference to n = 512) | h | n = 32 | 64 | 128 | 256 | observed rate (log2 of the ratios) |",
+           "|---|---|---|---|---|---|---|"]
     for key, rows in res["scenes_cured"].items():
         name, h = key.split(" h=")
         for what in ("energy", "profile"):
