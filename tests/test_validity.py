@@ -200,8 +200,8 @@ def profile(r, s):
 @pytest.mark.parametrize("scene", [cone_scene, fold_scene])
 def test_energy_and_profile_converge_under_refinement(scene):
     """h = 0.1, n = 32 ... 256 against 256.  Observed energy differences: cone
-    8.9e-7, 9.7e-8, 1.0e-8 (ratios 9.2, 9.6: ~3.2, the cone point limits the
-    order), fold 1.4e-5, 1.2e-6, 1.0e-7 (ratios 12, 11: ~3.5)."""
+    1.0e-6, 1.2e-7, 1.6e-8 (ratios 8.6, 7.2: order ~3, the cone point limits
+    it), fold 1.5e-5, 1.3e-6, 1.3e-7 (ratios 11.3, 10.2: ~3.4)."""
     s = np.linspace(0, np.pi, 129)
     runs = {n: solve_axisym(scene(0.1), n) for n in (32, 64, 128, 256)}
     E = {n: r.raw.energy for n, r in runs.items()}
