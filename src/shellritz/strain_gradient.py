@@ -16,12 +16,13 @@ expansion for in-plane waves, added to the energy per unit reference area:
 
     R = C_R |grad grad eps|^2,    C_R = (h^5 / 1440) c^2 E'
 
-with eps the membrane strain of the middle surface (components in a locally
+with eps the elastic membrane strain of the middle surface, (r_a.r_b - G0 R_a.G0 R_b)/2
+(measured against the grown metric; components in a locally
 orthonormal reference frame, differentiated twice along the surface).  For an
 in-plane wave at small strain it is exactly the O(h^5 k^6) term of the 3D
 slab (checked in bench/validity.py); for smooth fields it is O(h^5), the
-order the model neglects, and it vanishes for uniform strain and rigid
-motions.  With it the in-plane symbol stays positive for compressive stresses
+order the model neglects, and it vanishes for uniform strain, rigid
+motions and stress-free grown states.  With it the in-plane symbol stays positive for compressive stresses
 up to |Sigma| = 0.89 E' / c.
 
 This module holds the coefficient and the line-engine (C1 Hermite) version:
