@@ -22,8 +22,6 @@ Run: python bench/validity.py [--quick]   (--quick: n <= 128, DKT n <= 32)
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -32,7 +30,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE))                                 # bench/machine.py
 
+from machine import machine_info  # noqa: E402
 from shellritz import NeoHookean, Shell, shapes  # noqa: E402
 from shellritz.discretize.axisym import AxisymmetricShell  # noqa: E402
 from shellritz.discretize.planestrain import PlaneStrainShell  # noqa: E402
@@ -45,15 +45,6 @@ from test_validity import (LAW, cone_scene, fold_scene, inplane, shell_symbol,  
 
 RESULTS = HERE / "results"
 HERMITE_C = 60.0      # max of int u''^2 / int u'^2 times l^2 over C1 cubic Hermite fields
-
-
-def machine():
-    import numba
-    import scipy
-    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")),
-               platform.processor())
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numpy": np.__version__, "scipy": scipy.__version__, "numba": numba.__version__}
 
 
 # ---------------------------------------------------------------------------
@@ -399,8 +390,9 @@ def main():
     if args.tables:
         print(tables(json.loads((RESULTS / "validity.json").read_text())))
         return
-    res = {"machine": machine(), "law": "neo-Hookean C = 1, nu = 0.4", "quick": args.quick}
+    res = {"law": "neo-Hookean C = 1, nu = 0.4", "quick": args.quick}
     res["symbol"] = symbols()
+    res["machine"] = machine_info()          # after the kernels ran (threading layer known)
     res["candidates"] = candidates()
     res["inertia"] = inertia(args.quick)
     sizes = [32, 64, 128] if args.quick else [32, 64, 128, 256, 512]
