@@ -363,16 +363,22 @@ def test_results_report_where_the_state_is_outside_the_model_range():
 @pytest.mark.slow
 def test_triangle_engine_converges_with_elements_down_to_a_quarter_thickness():
     """Cone scene, h = 0.2, quarter sphere of triangles, n = 16, 32, 64 along
-    the meridian (l = 0.98 h, 0.49 h, 0.25 h).  Without the term n = 32
-    failed at t = 0.94 (elements h/2 on the triangle engine already)."""
+    the meridian (l = 0.98 h, 0.49 h, 0.25 h).  Without the term n = 32 fails
+    at t = 0.94 and n = 64 at t = 0.21 (bench/validity.py).  With it all
+    converge to stable states in 11-12 Newton iterations; 4 x quarter energy
+    2.2892e-3, 2.4004e-3, 2.3970e-3 (change 4.6 %, then 0.14 %), against
+    the axisymmetric 2.3755e-3 (n = 512): 0.9 % apart at n = 64.  That rest
+    is the cone point on triangles: the scene averages the two tangential
+    growths at the pole nodes and the elements there carry up to 9 % of their
+    energy in the strain-gradient term (flagged by Result.validity)."""
     E = []
     for n in (16, 32, 64):
         r = cone_scene(0.2).solve("dkt", level="consistent", n=n, steps=10)
         assert r.raw.converged and r.raw.history.stable, n
         E.append(4 * r.raw.energy)
     axisym = solve_axisym(cone_scene(0.2), 256).raw.energy
-    d = np.abs(np.array(E) - axisym)
-    assert d[2] < 0.01 * axisym, (E, axisym)
+    assert abs(E[2] - E[1]) < 3e-3 * axisym, E
+    assert abs(E[2] - axisym) < 0.01 * axisym, (E, axisym)
 
 
 def test_triangle_results_report_curvature_and_growth_gradient_per_element():
