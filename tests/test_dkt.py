@@ -106,8 +106,10 @@ MESHES = {
 }
 
 
-def zero_eigenvalues(mesh, quadrature):
+def zero_eigenvalues(mesh, quadrature, strain_gradient=True):
     s = prepared(mesh, quadrature=quadrature)
+    if not strain_gradient:
+        s.strain_gradient = None
     w = np.linalg.eigvalsh(full(s.evaluate(s.free_state(), 2)[2]))
     return int((np.abs(w) < 1e-9 * w.max()).sum())
 
@@ -119,9 +121,11 @@ def test_free_mesh_has_exactly_six_zero_modes(name):
 
 def test_three_point_rule_has_spurious_zero_modes():
     """Why the default rule has 6 points: on structured flat meshes the
-    3-point rule leaves extra zero-energy modes."""
-    assert zero_eigenvalues(MESHES["flat-structured"](), 3) > 6
-    assert zero_eigenvalues(MESHES["flat-right"](), 3) > 6
+    3-point rule leaves extra zero-energy modes of the MODEL.md energy (the
+    h^5 strain-gradient term of issue 14 gives them a small stiffness, so
+    they are counted without it)."""
+    assert zero_eigenvalues(MESHES["flat-structured"](), 3, strain_gradient=False) > 6
+    assert zero_eigenvalues(MESHES["flat-right"](), 3, strain_gradient=False) > 6
 
 
 @pytest.mark.parametrize("pattern, perturb", [("alternate", 0.0), ("alternate", 0.35)])

@@ -96,7 +96,10 @@ def test_cylinder_error_against_exact_3d_solution_falls_with_h():
         r = np.array([cylinder_radius(h, n) for n in (128, 256, 512)])
         r1 = (4 * r[1:] - r[:-1]) / 3            # Richardson: n^-2, then n^-4
         r_mesh_converged = (16 * r1[1] - r1[0]) / 15
-        assert abs(r_mesh_converged - shell_cylinder_r0(GAMMA, QN * h, h)) < 3e-9
+        # the 1D solution of the same energy: 2e-9 before issue 14; the DKT
+        # discretization of the h^5 strain-gradient term (zero for this uniform
+        # state in the continuum) leaves 5e-8 at h = 0.2, falling like h^5
+        assert abs(r_mesh_converged - shell_cylinder_r0(GAMMA, QN * h, h)) < 3e-9 + 1e-7 * (h / 0.2) ** 5, h
         errors.append(abs(r_mesh_converged - exact_cylinder_r0(GAMMA, QN * h, h)[2]))
     ratios = [errors[k] / errors[k + 1] for k in range(3)]
     # at least third order (ratio 8) is required; fourth (16) is observed

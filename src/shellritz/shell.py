@@ -32,6 +32,8 @@ from .materials import Law
 from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id
 from .solve import EvaluationError, Solvable
+from .strain_gradient import DKTStrainGradient, dkt_active_elements
+from .validity import dkt_validity
 
 __all__ = ["Shell", "Result"]
 
@@ -85,6 +87,11 @@ class Shell(Solvable):
         self.level = level
         self._level = level_id(level)
         self.bary, self.wts = rule(quadrature)
+        # the h^5 strain-gradient term that keeps the bending levels bounded
+        # below on fine meshes (strain_gradient.py, docs/validity.md)
+        active = dkt_active_elements(mesh, self.h)
+        self.strain_gradient = (None if level == "membrane" or not active.any()
+                                else DKTStrainGradient(mesh, material, self.h, active))
         n = mesh.n_nodes
         self.X = mesh.vertices
         self.frames = mesh.frames.copy()
@@ -476,7 +483,12 @@ class Shell(Solvable):
         fidx = -np.ones(9 * self.mesh.n_nodes, np.int64)
         fidx[self.free] = np.arange(len(self.free))
         self.free_index = fidx
-        self._indptr, self._indices, self._emap = hessian_pattern(tri, fidx.reshape(-1, 9))
+        sg = self.strain_gradient
+        pattern_tri = tri if sg is None else np.vstack([tri, sg.virtual_triangles()])
+        self._indptr, self._indices, emap = hessian_pattern(pattern_tri, fidx.reshape(-1, 9))
+        self._emap = emap[: len(tri)].copy()
+        if sg is not None:
+            sg.set_pattern(emap[len(tri):])
         self._nnz = len(self._indices)
         colour = color_elements(tri, self.mesh.n_nodes)
         self._order = np.argsort(colour, kind="stable")
@@ -562,6 +574,8 @@ class Shell(Solvable):
             e = int(np.argmax(self._status != 0))
             raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "
                                   f"{STATUS_TEXT[int(self._status[e])]}")
+        if self.strain_gradient is not None:
+            self.strain_gradient.add(mode, self, U, self._Le, self._G, data)
         r = U[:, 0]
         E = self._Le.sum() - np.sum(self._f_t * r)
         self._E_magnitude = np.abs(self._Le).sum() + np.abs(self._f_t * r).sum()
@@ -678,6 +692,10 @@ class Result:
         self.y1 = s.Y1.copy()
         self.y2 = s.Y2.copy()
         self.energy = float(s.evaluate(s.free_state(), 0)[0]) if self.t is not None else np.nan
+        # per-element measures of the model's range (validity.py); warns for a converged state
+        self.validity = dkt_validity(s) if self.t is not None else None
+        if self.converged:
+            self.validity.warn()
 
     @property
     def displacement(self):

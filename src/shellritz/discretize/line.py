@@ -21,6 +21,8 @@ from ..kernels.point import STATUS_TEXT, _reference_geometry
 from ..materials import Law
 from ..model import check_thickness, level_id
 from ..solve import EvaluationError, Solvable
+from .. import strain_gradient
+from ..validity import line_validity
 
 GAUSS_POINTS = 5
 
@@ -73,6 +75,9 @@ class LineShell(Solvable):
         self._fixed = np.zeros((self.n_nodes, 4), bool)
         self._bc = []
         self._build_points()
+        # the h^5 strain-gradient term that keeps the bending levels bounded
+        # below on fine meshes (strain_gradient.py, docs/validity.md)
+        self.strain_gradient = None if level == "membrane" else strain_gradient.LineStrainGradient(self)
 
     # ----------------------------------------------------------------- geometry
     def _kinematics(self, kin):
@@ -441,6 +446,10 @@ class LineShell(Solvable):
                                   f"{STATUS_TEXT[int(self._status[q])]}")
         E = self._Lq.sum() - self._f @ U
         self._E_magnitude = np.abs(self._Lq).sum() + np.abs(self._f * U).sum()
+        if self.strain_gradient is not None:
+            R, gR, KR = self.strain_gradient.evaluate(U, mode)
+            E += R
+            self._E_magnitude += R
         if self._p_t:
             V, gV, HV = self._volume(U, mode)
             E -= self._p_t * V
@@ -451,6 +460,8 @@ class LineShell(Solvable):
         g -= self._f
         if self._p_t:
             g -= self._p_t * gV
+        if self.strain_gradient is not None:
+            g += gR
         if mode == 1:
             return E, g[self.free], None
         rows = np.broadcast_to(self.elem_dofs[self.qelem][:, :, None], self._Hq.shape)
@@ -460,8 +471,11 @@ class LineShell(Solvable):
             vals = vals - self._p_t * HV
         fr, fc = self._fidx[rows], self._fidx[cols]
         keep = (fr >= 0) & (fc >= 0) & (fr >= fc)
+        fr, fc, vals = fr[keep], fc[keep], vals[keep]
+        if self.strain_gradient is not None:
+            fr, fc, vals = np.r_[fr, KR[0]], np.r_[fc, KR[1]], np.r_[vals, KR[2]]
         nf = len(self.free)
-        K = sp.csr_matrix((vals[keep], (fr[keep], fc[keep])), shape=(nf, nf))
+        K = sp.csr_matrix((vals, (fr, fc)), shape=(nf, nf))
         K.sum_duplicates()
         return E, g[self.free], K
 
@@ -506,6 +520,10 @@ class LineResult:
         self.y1 = e.Y1.copy()
         self.y2 = e.Y2.copy()
         self.energy = float(e.evaluate(e.free_state(), 0)[0]) if self.t is not None else np.nan
+        # per-element measures of the model's range (validity.py); warns for a converged state
+        self.validity = line_validity(e) if self.t is not None else None
+        if self.converged:
+            self.validity.warn()
 
     def at(self, s):
         """(a, b) of the solved curve at parameters s (Hermite interpolation)."""

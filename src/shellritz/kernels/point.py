@@ -46,7 +46,7 @@ from numba import njit, prange
 from . import KERNEL
 from .material import (M_AA, S_W, V_P, mat_combination, mat_d3, mat_d3_vec,
                        mat_prepare, new_state)
-from .small import chol3, chol3_inverse, chol3_solve, cross, inv3, mv3
+from .small import chol3, chol3_inverse, chol3_solve, cross, det3, inv3, mv3
 
 LEVEL_MEMBRANE = 0
 LEVEL_BENDING = 1
@@ -65,6 +65,7 @@ ERR_Y1_NEWTON = 4       # y1 Newton did not converge
 ERR_REFERENCE = 5       # degenerate reference tangents
 ERR_GROWTH = 6          # det G0 <= 0
 ERR_CURRENT = 7         # degenerate current tangents (r_1 x r_2 = 0)
+ERR_THICKNESS = 8       # F0 + Z F1 inverts within |Z| <= h/2 (bending levels)
 
 STATUS_TEXT = {
     OK: "ok",
@@ -75,6 +76,8 @@ STATUS_TEXT = {
     ERR_REFERENCE: "degenerate reference tangents (R_1 x R_2 = 0)",
     ERR_GROWTH: "growth tensor with det G0 <= 0",
     ERR_CURRENT: "degenerate current tangents (r_1 x r_2 = 0)",
+    ERR_THICKNESS: "the deformation through the thickness F0 + Z F1 inverts within |Z| <= h/2 "
+                   "(folded offset surfaces: outside the model's range)",
 }
 
 NV = 15          # local variables v
@@ -577,6 +580,8 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         y2[i] = rhs[i]
     _slot(U, CA[1], S[1])
     A0, A1 = S[0], S[1]
+    if not _thickness_admissible(U, CF, h, vec[11], vec[12]):
+        return nan, ERR_THICKNESS
 
     # X = A1 Q1 + A0 Q0 (all directions along which DW is taken linearly)
     Q1, Q0, Kk = gr[7], gr[8], gr[9]
@@ -776,6 +781,48 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         for j in range(i):
             hess[i, j] = hess[j, i]
     return L, OK
+
+
+@njit(**KERNEL)
+def _thickness_admissible(U, CF, h, f0, f1):
+    """det(F0 + Z F1) > 0 for |Z| <= h/2: the through-thickness Jacobian of the
+    model's deformation x = r + Z y1 + (Z^2 - h^2/12) y2 / 2 stays positive
+    (with F1 = rho + y2 (x) n this includes 1 + kappa_i Z > 0, offset surfaces
+    that do not fold).  det(F0 + Z F1) = d0 + d1 Z + d2 Z^2 + d3 Z^3, d0 > 0
+    (checked with the material); tested at Z = +-h/2 and at the roots of its
+    derivative inside."""
+    _slot(U, CF[0], f0)
+    _slot(U, CF[1], f1)
+    a = f0.reshape(3, 3)
+    b = f1.reshape(3, 3)
+    d0 = det3(a)
+    d3 = det3(b)
+    d1 = 0.0
+    d2 = 0.0
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            d1 += b[i, j] * (a[i1, j1] * a[i2, j2] - a[i1, j2] * a[i2, j1])
+            d2 += a[i, j] * (b[i1, j1] * b[i2, j2] - b[i1, j2] * b[i2, j1])
+    z = 0.5 * h
+    for zz in (-z, z):
+        if not d0 + zz * (d1 + zz * (d2 + zz * d3)) > 0.0:
+            return False
+    # p'(Z) = d1 + 2 d2 Z + 3 d3 Z^2
+    qa, qb, qc = 3.0 * d3, 2.0 * d2, d1
+    if qa != 0.0:
+        disc = qb * qb - 4.0 * qa * qc
+        if disc > 0.0:
+            sq = np.sqrt(disc)
+            for zz in ((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa)):
+                if -z < zz < z and not d0 + zz * (d1 + zz * (d2 + zz * d3)) > 0.0:
+                    return False
+    elif qb != 0.0:
+        zz = -qc / qb
+        if -z < zz < z and not d0 + zz * (d1 + zz * (d2 + zz * d3)) > 0.0:
+            return False
+    return True
 
 
 @njit(**KERNEL)
