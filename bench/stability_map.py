@@ -31,14 +31,15 @@ Run:  python bench/stability_map.py [--quick] [--threads 2] [--repeat 3]
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))      # bench/machine.py
+from machine import machine_info  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -91,7 +92,6 @@ def run_one(scene, config, size, repeat=1):
     """Solve ``scene`` at ``size`` with ``config`` (in this process): the
     row of the map.  wall_s is the median over ``repeat`` solves; the other
     entries are those of the last."""
-    import numba
     from shellritz import SolveError
     kind = SCENES[scene][1]
     opts = solver_options(scene, config)
@@ -131,15 +131,8 @@ def run_one(scene, config, size, repeat=1):
         "escapes": len(history.escapes) if history is not None else None,
         "notes": history.notes[:6] if history is not None else [],
         "error": error,
-        "threading_layer": _threading_layer(numba),
+        "machine": machine_info(),         # of this process, after its kernels ran
     }
-
-
-def _threading_layer(numba):
-    try:
-        return numba.threading_layer()
-    except ValueError:          # no parallel kernel has run
-        return None
 
 
 def run_isolated(scene, config, size, repeat, threads, time_limit):
@@ -166,27 +159,15 @@ def run_isolated(scene, config, size, repeat, threads, time_limit):
 
 
 def machine(threads):
-    import numba
-    cpu = platform.processor()
-    try:
-        cpu = next(l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    versions = {}
-    for pkg in ("numpy", "scipy", "numba", "pyamg", "pypardiso", "mkl", "matplotlib"):
-        try:
-            versions[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            versions[pkg] = None
+    """bench/machine.py's record of this process (the runs' own, with
+    Numba's threading layer, replace it from the first run) and the map's
+    settings."""
     try:
         commit = subprocess.run(["git", "-C", str(RESULTS.parent), "rev-parse", "HEAD"],
                                 capture_output=True, text=True).stdout.strip() or None
     except OSError:
         commit = None
-    return {"cpu": cpu, "cores": os.cpu_count(), "threads": threads, "python": platform.python_version(),
-            "numba": numba.__version__, "numba_threading_layer": None, "versions": versions,
-            "direct_solver": direct_method(), "shellritz_commit": commit,
-            "load_average_at_start": os.getloadavg()}
+    return dict(machine_info(), threads=threads, direct_solver=direct_method(), shellritz_commit=commit)
 
 
 def main():
@@ -215,13 +196,15 @@ def main():
         size = SCENES[scene][3 if args.quick else 4]
         for config in CONFIGS:
             row = run_isolated(scene, config, size, repeat, args.threads, limit)
+            run_machine = row.pop("machine", None)
+            if run_machine and out["machine"].get("numba_threading_layer") is None:
+                out["machine"].update(run_machine)       # as the runs saw it (threads, layer)
             out["rows"].append(row)
-            out["machine"]["numba_threading_layer"] = (out["machine"]["numba_threading_layer"]
-                                                       or row.get("threading_layer"))
             status = "ok" if row["converged"] else "FAILED"
             print(f"{scene:20s} {config:25s} {status:6s} its={row['newton_its']} "
                   f"krylov={row['krylov_its']} {row['wall_s']:.2f} s stable={row['stable']}"
                   + (f"  ({row['error']})" if row.get("error") else ""), flush=True)
+    out["machine"]["load_average_end"] = list(os.getloadavg())
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=2))
     chart(out, RESULTS / f"{name}.png")
