@@ -4,14 +4,15 @@ paper's reference table (benchmark_scenes.PULLED_CYLINDER_REFERENCE).
 
 Writes bench/results/pulled_cylinder.json (per mesh: the path P, w_A, -u_B,
 -u_C, inertia; wall time; the values at P = 40 000 and their deviation from
-the reference), the paths as CSV (history.write_path) and the chart
-bench/results/pulled_cylinder.png.
+the reference), the paths as CSV (history.write_path), the machine (bench/machine.py) and the
+chart bench/results/pulled_cylinder.png.
 
 Run:  python bench/pulled_cylinder.py [--quick]      (quick: 8 x 8 and 12 x 12)
 """
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -19,6 +20,9 @@ import numpy as np
 
 from shellritz.benchmark_scenes import (PULLED_CYLINDER, PULLED_CYLINDER_REFERENCE, pulled_cylinder,
                                         pulled_cylinder_monitor)
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))      # bench/machine.py
+from machine import machine_info  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -60,6 +64,7 @@ def main():
         d = r["relative_to_reference"]
         print(f"{n:3d} x {n:<3d} {r['wall_s']:7.1f} s {r['newton_its']:4d} its  at P_max: "
               + "  ".join(f"{k} {r['at_P_max'][k]:.4f} ({100 * d[k]:+.1f} %)" for k in d), flush=True)
+    out["machine"] = machine_info()
     name = "pulled_cylinder_quick" if args.quick else "pulled_cylinder"
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=1))
     chart(out, RESULTS / f"{name}.png")
