@@ -281,7 +281,7 @@ def minimize(problem, t, opts, history, g_ref, lin):
                 return K
             x, E, g, K, gnorm = _back_to(problem, watch)     # an equilibrium above the start
             watch, watch_spent, factorized, last_step = None, True, False, np.inf
-        stalled = (len(gnorms) >= 8 and gnorm > 0.5 * gnorms[-7]
+        stalled = (watch is None and len(gnorms) >= 8 and gnorm > 0.5 * gnorms[-7]
                    and energies[-7] - E <= 1e-6 * max(problem.energy_magnitude(), abs(E)))
         if it == opts.max_iter or stalled:
             if opts.verbose:
