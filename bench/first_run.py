@@ -10,7 +10,6 @@ prints (kernels compiled, solve) in bench/results/first_run.json.
 import argparse
 import json
 import os
-import platform
 import re
 import resource
 import subprocess
@@ -20,20 +19,6 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-
-
-def machine():
-    import numba
-    import numpy
-    import scipy
-    cpu = platform.processor()
-    try:
-        cpu = next(l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numba": numba.__version__, "numpy": numpy.__version__, "scipy": scipy.__version__,
-            "load_average_at_start": os.getloadavg()}
 
 
 def run(cache_dir, out_dir):
@@ -59,7 +44,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="cold run only")
     args = ap.parse_args()
-    out = {"machine": machine(), "target_s": 90}
+    from machine import machine_info
+    out = {"machine": machine_info(), "target_s": 90}
     with tempfile.TemporaryDirectory() as tmp:
         cache, res = Path(tmp) / "numba-cache", Path(tmp) / "out"
         out["cold"] = run(cache, res)

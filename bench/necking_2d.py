@@ -28,7 +28,6 @@ Run: python bench/necking_2d.py [--quick]   -> bench/results/necking_2d_path.jso
 """
 
 import json
-import platform
 import sys
 import time
 from pathlib import Path
@@ -44,29 +43,12 @@ RESULTS = HERE / "results"
 sys.path.insert(0, str(HERE))
 
 import fe3d  # noqa: E402  (Newton with line search, linear solver)
+from machine import machine_info  # noqa: E402
 from shellritz.kernels.material import M_AA, S_W, V_P, mat_prepare, new_state  # noqa: E402
 from shellritz.necking import considere_stretch, default_law, plane_strain_tension  # noqa: E402
 from shellritz.linalg import negative_eigenvalues  # noqa: E402
 
 IN_PLANE = np.array([0, 2])          # X, Z among the 3D axes (Y: out of plane)
-
-
-def machine_info():
-    import numba
-    import scipy
-    import skfem
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    import os
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numpy": np.__version__, "scipy": scipy.__version__, "numba": numba.__version__,
-            "scikit-fem": skfem.__version__}
 
 
 @njit(cache=True)

@@ -40,7 +40,7 @@ THREADS = 2
 # beyond 50k triangles; two PARDISO factors of a 1M-triangle mesh (4.5M
 # DOFs, about 3 KB per DOF each) do not fit in 24 GB
 LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None}
-TIME_LIMIT_S = 3 * 3600
+TIME_LIMIT_S = 1200
 
 CHILD = r"""
 import json, resource, sys, time
