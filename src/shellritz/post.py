@@ -29,7 +29,7 @@ surfaces, or the solid between them (wedge cells), and a PNG picture.
 import numpy as np
 from numba import njit
 
-from .discretize.dkt import apply_map, element_chart, point_map
+from .discretize.dkt import apply_map, element_chart, gather_element, point_map
 from .kernels.material import V_P, mat_prepare, new_state
 from .kernels.point import _reference_geometry
 
@@ -48,17 +48,7 @@ def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, F_out, P_out, S
     F = np.zeros((3, 3))
     G = np.zeros((3, 3))
     for e in range(tri.shape[0]):
-        for i in range(3):
-            nd = tri[e, i]
-            for c in range(3):
-                Xe[i, c] = X[nd, c]
-                Te[i, c, 0] = T[nd, c, 0]
-                Te[i, c, 1] = T[nd, c, 1]
-                bref[3 * i, c] = X[nd, c]
-                bref[3 * i + 1, c] = T[nd, c, 0]
-                bref[3 * i + 2, c] = T[nd, c, 1]
-                for s in range(3):
-                    bcur[3 * i + s, c] = U[nd, s, c]
+        gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
         area_out[e] = element_chart(Xe, Te, Q, gl, et, el)
         wsum = 0.0
         for iq in range(bary.shape[0]):

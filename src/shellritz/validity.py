@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from .discretize.dkt import apply_map, element_chart, point_map
+from .discretize.dkt import apply_map, element_chart, gather_element, point_map
 
 LIMITS = {"curvature_h": 0.5, "growth_gradient_h": 0.5, "strain_gradient_share": 0.01}
 
@@ -121,15 +121,9 @@ def _dkt_curvature(tri, X, T, U, bary, out):
     Xe, Te = np.zeros((3, 3)), np.zeros((3, 3, 2))
     Q, gl, et, el = np.zeros((3, 2, 2)), np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(3)
     b, C, blocks, v = np.zeros((5, 9)), np.zeros((2, 9)), np.zeros((9, 3)), np.zeros(15)
+    bref = np.zeros((9, 3))
     for e in range(tri.shape[0]):
-        for i in range(3):
-            nd = tri[e, i]
-            for c in range(3):
-                Xe[i, c] = X[nd, c]
-                Te[i, c, 0] = T[nd, c, 0]
-                Te[i, c, 1] = T[nd, c, 1]
-                for s in range(3):
-                    blocks[3 * i + s, c] = U[nd, s, c]
+        gather_element(e, tri, X, T, U, Xe, Te, bref, blocks)
         element_chart(Xe, Te, Q, gl, et, el)
         worst = 0.0
         for iq in range(bary.shape[0]):

@@ -60,6 +60,24 @@ def rule(npoints):
 
 
 @njit(**KERNEL)
+def gather_element(e, tri, X, T, U, Xe, Te, bref, bcur):
+    """Element e's reference vertices Xe (3, 3) and nodal tangent frames Te
+    (3, 3, 2), and its nodal blocks (9, 3): bref = (X, T_1, T_2) of the
+    reference, bcur = (r, a_1, a_2) of the state U, node by node."""
+    for i in range(3):
+        nd = tri[e, i]
+        for c in range(3):
+            Xe[i, c] = X[nd, c]
+            Te[i, c, 0] = T[nd, c, 0]
+            Te[i, c, 1] = T[nd, c, 1]
+            bref[3 * i, c] = X[nd, c]
+            bref[3 * i + 1, c] = T[nd, c, 0]
+            bref[3 * i + 2, c] = T[nd, c, 1]
+            for s in range(3):
+                bcur[3 * i + s, c] = U[nd, s, c]
+
+
+@njit(**KERNEL)
 def element_chart(Xe, Te, Q, gl, et, el):
     """Facet chart of a triangle.
 

@@ -15,7 +15,7 @@ s = 0 position, 1 and 2 the derivatives along T_n1, T_n2; local DOF
 import numpy as np
 from numba import njit, prange
 
-from ..discretize.dkt import apply_map, element_chart, point_map
+from ..discretize.dkt import apply_map, element_chart, gather_element, point_map
 from . import KERNEL
 from .point import OK, _reference_geometry, new_scratch, point_kernel
 
@@ -38,19 +38,8 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
     mode asks. Returns (L, status)."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
+    gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
     n0, n1, n2 = tri[e, 0], tri[e, 1], tri[e, 2]
-    nodes = (n0, n1, n2)
-    for i in range(3):
-        nd = nodes[i]
-        for c in range(3):
-            Xe[i, c] = X[nd, c]
-            Te[i, c, 0] = T[nd, c, 0]
-            Te[i, c, 1] = T[nd, c, 1]
-            bref[3 * i, c] = X[nd, c]
-            bref[3 * i + 1, c] = T[nd, c, 0]
-            bref[3 * i + 2, c] = T[nd, c, 1]
-            for s in range(3):
-                bcur[3 * i + s, c] = U[nd, s, c]
     area = element_chart(Xe, Te, Q, gl, et, el)
     Le = 0.0
     if mode >= 1:
@@ -204,22 +193,29 @@ def assemble_dkt(mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n
                 Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, tri, X, T,
                                             U, bary, wts, G0n, G1n, qp, qm, has_load, Y1, Y2,
                                             ge, ke, sc, wk)
-                if status[e] != OK:
-                    continue
-                if mode >= 1:
-                    for i in range(3):
-                        nd = tri[e, i]
-                        for s in range(3):
-                            for k in range(3):
-                                G[nd, s, k] += ge[3 * i + s, k]
-                if mode >= 2:
-                    k = 0
-                    for p in range(27):
-                        for q in range(p + 1):
-                            pos = emap[e, k]
-                            if pos >= 0:
-                                data[pos] += ke[q, p]      # ke holds the upper triangle
-                            k += 1
+                if status[e] == OK:
+                    scatter_element(e, mode, tri, ge, ke, emap, G, data)
+
+
+@njit(**KERNEL)
+def scatter_element(e, mode, tri, ge, ke, emap, G, data):
+    """Add element e's gradient ge (9, 3) to the nodal gradient G and (mode 2)
+    the upper triangle of its Hessian ke (27, 27) to the CSR data through
+    the element map emap (-1: a fixed DOF)."""
+    if mode >= 1:
+        for i in range(3):
+            nd = tri[e, i]
+            for s in range(3):
+                for k in range(3):
+                    G[nd, s, k] += ge[3 * i + s, k]
+    if mode >= 2:
+        k = 0
+        for p in range(27):
+            for q in range(p + 1):
+                pos = emap[e, k]
+                if pos >= 0:
+                    data[pos] += ke[q, p]
+                k += 1
 
 
 @njit(**KERNEL)

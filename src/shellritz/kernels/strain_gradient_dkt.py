@@ -29,8 +29,9 @@ d2P/dX2 = 2 M (x) I3: energy, gradient and Hessian are exact.
 import numpy as np
 from numba import njit, prange
 
-from ..discretize.dkt import element_chart, point_map
+from ..discretize.dkt import element_chart, gather_element, point_map
 from . import KERNEL
+from .assembly import scatter_element
 
 NP1 = 9           # blocks P0 (3) and P1 (6): first covariant derivatives
 NP2 = 18          # and P2 (9): second
@@ -101,18 +102,11 @@ def _load_element(e, tri, X, T, U, wk):
     returns the facet area."""
     Xe, Te, Q, gl, et, el = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
     Xd, Xs, Xc, Xr = wk[8], wk[9], wk[10], wk[11]
-    for i in range(3):
-        nd = tri[e, i]
+    gather_element(e, tri, X, T, U, Xe, Te, Xr, Xc)
+    for k in range(9):
         for c in range(3):
-            Xe[i, c] = X[nd, c]
-            Te[i, c, 0] = T[nd, c, 0]
-            Te[i, c, 1] = T[nd, c, 1]
-            ref = (X[nd, c], T[nd, c, 0], T[nd, c, 1])
-            for s in range(3):
-                Xr[3 * i + s, c] = ref[s]
-                Xc[3 * i + s, c] = U[nd, s, c]
-                Xd[3 * i + s, c] = U[nd, s, c] - ref[s]
-                Xs[3 * i + s, c] = U[nd, s, c] + ref[s]
+            Xd[k, c] = Xc[k, c] - Xr[k, c]
+            Xs[k, c] = Xc[k, c] + Xr[k, c]
     return element_chart(Xe, Te, Q, gl, et, el)
 
 
@@ -443,20 +437,7 @@ def add_dkt_strain_gradient(mode, C, active, tri, X, T, U, G0n, bary, wts, order
                     continue
                 Re[e] = element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk)
                 Le[e] += Re[e]
-                if mode >= 1:
-                    for i in range(3):
-                        nd = tri[e, i]
-                        for s in range(3):
-                            for k in range(3):
-                                G[nd, s, k] += ge[3 * i + s, k]
-                if mode >= 2:
-                    k = 0
-                    for p in range(27):
-                        for q in range(p + 1):
-                            pos = emap[e, k]
-                            if pos >= 0:
-                                data[pos] += ke[q, p]      # ke holds the upper triangle
-                            k += 1
+                scatter_element(e, mode, tri, ge, ke, emap, G, data)
 
 
 # ---------------------------------------------------------------------------
