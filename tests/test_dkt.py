@@ -77,14 +77,18 @@ def test_element_map_reproduces_affine_fields_and_constant_curvature():
 
 
 @pytest.mark.parametrize("membrane", MEMBRANES)
-@pytest.mark.parametrize("level, h", [("membrane", 0.1), ("bending", 0.1), ("consistent", 0.1),
-                                      ("consistent", 0.01)])
-def test_assembled_derivatives_against_finite_differences(level, h, membrane):
-    """h = 0.01: the regge metric is blended (beta = 2 h / l_e = 0.05), h = 0.1: beta = 0.5."""
+@pytest.mark.parametrize("level, h, face", [("membrane", 0.1, None), ("bending", 0.1, None),
+                                            ("consistent", 0.1, None), ("consistent", 0.01, None),
+                                            ("membrane", 0.1, "inner"), ("consistent", 0.1, "outer")])
+def test_assembled_derivatives_against_finite_differences(level, h, face, membrane):
+    """h = 0.01: the regge metric is blended (beta = 2 h / l_e = 0.05), h = 0.1:
+    beta = 0.5; face: a follower pressure on that face too."""
     mesh = shapes.cylinder(3, 2, radius=1.0, length=0.6, theta=(0, 1.0))
     s = prepared(mesh, h=h, level=level, G0=np.diag([1.1, 0.95, 1.0]), G1=np.diag([0.8, 0.3, 0]),
                  membrane=membrane)
     s.face_tractions(q_plus=[0.01, 0.0, 0.02])
+    if face is not None:
+        s.pressure(0.02, face=face)
     s._prepared = False
     s._setup()
     s.set_parameter(1.0)

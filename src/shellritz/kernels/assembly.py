@@ -118,10 +118,10 @@ def _regge_element_terms(mode, S, bcur, gamma, X, Y, dD, XdD, ge, ke):
 
 @njit(**KERNEL)
 def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n,
-             qp, qm, has_load, Y1, Y2, ge, ke, sc, wk, rw):
+             qp, qm, has_load, pf, zf, Y1, Y2, ge, ke, sc, wk, rw):
     """Energy of element e; ge (9, 3) and the upper triangle of ke (27, 27) if
-    mode asks; regge: the assumed membrane metric (discretize/regge.py).
-    Returns (L, status)."""
+    mode asks; regge: the assumed membrane metric (discretize/regge.py); pf,
+    zf: follower pressure on the face Z = zf (point_kernel).  Returns (L, status)."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
     (S, Wd, alpha, Fw, gram, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
@@ -214,10 +214,10 @@ def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wt
             for i in range(15):
                 vhat[i] = rhat[i] if i < 6 else v[i]
             L, st = point_kernel(mode, level, kind, psi, params, h, vhat, ref, G0, G1, dG0, qb,
-                                 m, dm, y1, y2, grad, hess, sc)
+                                 m, dm, y1, y2, grad, hess, sc, pf, zf)
         else:
             L, st = point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0, qb, m,
-                                 dm, y1, y2, grad, hess, sc)
+                                 dm, y1, y2, grad, hess, sc, pf, zf)
         if st != OK:
             return np.nan, st
         Le += w * L
@@ -366,8 +366,8 @@ def color_elements(tri, n_nodes):
 
 @njit(cache=True, parallel=True)
 def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n,
-                 qp, qm, has_load, Y1, Y2, order, colour_start, emap, n_threads, Le, G, data,
-                 status):
+                 qp, qm, has_load, pf, zf, Y1, Y2, order, colour_start, emap, n_threads, Le, G,
+                 data, status):
     """Element energies Le (E); for mode >= 1 the gradient G (n, 3, 3), for
     mode >= 2 the Hessian values data (positions emap), both overwritten.
 
@@ -376,6 +376,8 @@ def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, w
     n_threads: numba.get_num_threads() of the caller (a colour runs as
     4 n_threads chunks).
     regge: the assumed membrane metric of discretize/regge.py (else the DKT one).
+    pf, zf: the points' part of a follower pressure pf on the face Z = zf
+    (point_kernel; the volume of the positions is the caller's).
     status[e] = point-kernel status of the first failing point, or ERR_METRIC (0: ok).
     """
     if mode >= 1:
@@ -395,8 +397,8 @@ def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, w
             for j in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
                 e = order[j]
                 Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, regge, tri, X,
-                                            T, U, bary, wts, G0n, G1n, qp, qm, has_load, Y1, Y2,
-                                            ge, ke, sc, wk, rw)
+                                            T, U, bary, wts, G0n, G1n, qp, qm, has_load, pf, zf,
+                                            Y1, Y2, ge, ke, sc, wk, rw)
                 if status[e] != OK:
                     continue
                 if mode >= 1:
