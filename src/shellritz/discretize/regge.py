@@ -92,51 +92,122 @@ EDGE_MEAN = np.array([[6.0 / 5.0, -1.0 / 10.0, -1.0 / 10.0],
 EDGE_MID = np.array([1.5, -0.25, -0.25])        # (psi_c, psi_0, psi_1) at s = 1/2
 
 
-@njit(**KERNEL)
-def data_maps(Q, et, el, S, W):
-    """S (N_DATA, 9, 9): datum j = sum_kl S[j, k, l] u_k . u_l of the element's
-    nodal 3-vectors u (dkt.py order r_0, a_01, a_02, r_1, ...).  W (3, 9) work.
+# The data are fixed quadratic forms of N_W vectors w, each a combination of at
+# most two nodal vectors, w_p = WC[p, 0] u_{WI[p, 0]} + WC[p, 1] u_{WI[p, 1]}:
+#   w_{3k}, w_{3k+1}, w_{3k+2} = c, m0 = d_i t, m1 = d_j t of edge k;
+#   w_{9+2i+a} = d_i e_a (column a of the nodal gradient of node i in the chart).
+N_W = 15
 
-    j = 3 i + (0, 1, 2): components (11, 12, 22) of C_i in the chart;
-    9 + k: E_k; 12 + k: p_k (edge k = node (k+1)%3 -> (k+2)%3).
-    """
-    for j in range(N_DATA):
-        for k in range(9):
-            for l in range(9):
-                S[j, k, l] = 0.0
+
+def _data_tables():
+    wi = np.zeros((N_W, 2), np.int64)
+    sup = -np.ones((N_DATA, 3), np.int64)
+    gam = np.zeros((N_DATA, 3, 3))
+    for k in range(3):
+        i, j = (k + 1) % 3, (k + 2) % 3
+        wi[3 * k] = (3 * j, 3 * i)
+        wi[3 * k + 1] = (3 * i + 1, 3 * i + 2)
+        wi[3 * k + 2] = (3 * j + 1, 3 * j + 2)
+        for d, g in ((9 + k, EDGE_MEAN), (12 + k, np.outer(EDGE_MID, EDGE_MID))):
+            sup[d] = (3 * k, 3 * k + 1, 3 * k + 2)
+            gam[d] = g
     for i in range(3):
-        for c in range(3):
-            a = 0 if c < 2 else 1
-            b = 0 if c == 0 else 1
-            for s in range(2):
-                for s2 in range(2):
-                    f = 0.5 * (Q[i, s, a] * Q[i, s2, b] + Q[i, s, b] * Q[i, s2, a])
-                    S[3 * i + c, 3 * i + 1 + s, 3 * i + 1 + s2] += f
+        wi[9 + 2 * i] = wi[10 + 2 * i] = (3 * i + 1, 3 * i + 2)
+        for c, (a, b) in enumerate(((0, 0), (0, 1), (1, 1))):
+            sup[3 * i + c, :2] = (9 + 2 * i, 10 + 2 * i)
+            gam[3 * i + c, a, b] += 0.5
+            gam[3 * i + c, b, a] += 0.5
+    return wi, sup, gam
+
+
+WI, DATA_SUPPORT, DATA_FORM = _data_tables()
+
+
+@njit(**KERNEL)
+def data_maps(Q, et, el, WC):
+    """WC (N_W, 2): the element's coefficients of the w vectors (above).
+    Data j = 3 i + (0, 1, 2): components (11, 12, 22) of C_i in the chart;
+    9 + k: E_k; 12 + k: p_k (edge k = node (k+1)%3 -> (k+2)%3)."""
     for k in range(3):
         i = (k + 1) % 3
         j = (k + 2) % 3
-        # W rows: c, m0 = d_i t, m1 = d_j t as combinations of the nodal vectors
-        for p in range(3):
-            for q in range(9):
-                W[p, q] = 0.0
-        W[0, 3 * j] = 1.0 / el[k]
-        W[0, 3 * i] = -1.0 / el[k]
+        WC[3 * k, 0] = 1.0 / el[k]
+        WC[3 * k, 1] = -1.0 / el[k]
         for s in range(2):
-            W[1, 3 * i + 1 + s] = Q[i, s, 0] * et[k, 0] + Q[i, s, 1] * et[k, 1]
-            W[2, 3 * j + 1 + s] = Q[j, s, 0] * et[k, 0] + Q[j, s, 1] * et[k, 1]
-        for p in range(3):
-            for q in range(3):
-                gm = EDGE_MEAN[p, q]
-                gp = EDGE_MID[p] * EDGE_MID[q]
-                for u in range(9):
-                    if W[p, u] == 0.0:
-                        continue
-                    for v in range(9):
-                        f = 0.5 * W[p, u] * W[q, v]
-                        S[9 + k, u, v] += gm * f
-                        S[9 + k, v, u] += gm * f
-                        S[12 + k, u, v] += gp * f
-                        S[12 + k, v, u] += gp * f
+            WC[3 * k + 1, s] = Q[i, s, 0] * et[k, 0] + Q[i, s, 1] * et[k, 1]
+            WC[3 * k + 2, s] = Q[j, s, 0] * et[k, 0] + Q[j, s, 1] * et[k, 1]
+    for i in range(3):
+        for a in range(2):
+            for s in range(2):
+                WC[9 + 2 * i + a, s] = Q[i, s, a]
+
+
+@njit(**KERNEL)
+def data_values(WC, blocks, w, D):
+    """w (N_W, 3) of the nodal vectors blocks (9, 3) and the data D (N_DATA)."""
+    for p in range(N_W):
+        k, l = WI[p, 0], WI[p, 1]
+        for c in range(3):
+            w[p, c] = WC[p, 0] * blocks[k, c] + WC[p, 1] * blocks[l, c]
+    for j in range(N_DATA):
+        s = 0.0
+        for a in range(3):
+            pa = DATA_SUPPORT[j, a]
+            if pa < 0:
+                continue
+            for b in range(3):
+                pb = DATA_SUPPORT[j, b]
+                if pb < 0:
+                    continue
+                s += DATA_FORM[j, a, b] * (w[pa, 0] * w[pb, 0] + w[pa, 1] * w[pb, 1]
+                                           + w[pa, 2] * w[pb, 2])
+        D[j] = s
+
+
+@njit(**KERNEL)
+def data_gradients(WC, w, dD):
+    """dD (N_DATA, 27): derivatives of the data by the nodal vectors (9 x 3)."""
+    for j in range(N_DATA):
+        for q in range(27):
+            dD[j, q] = 0.0
+        for a in range(3):
+            pa = DATA_SUPPORT[j, a]
+            if pa < 0:
+                continue
+            for c in range(3):
+                g = 0.0
+                for b in range(3):
+                    pb = DATA_SUPPORT[j, b]
+                    if pb >= 0:
+                        g += 2.0 * DATA_FORM[j, a, b] * w[pb, c]
+                for l in range(2):
+                    dD[j, 3 * WI[pa, l] + c] += WC[pa, l] * g
+
+
+@njit(**KERNEL)
+def add_data_hessian(WC, gamma, ke):
+    """Upper triangle of ke (27, 27) += sum_j gamma_j d2 D_j / du2 (= a 9 x 9
+    matrix (x) I3)."""
+    for j in range(N_DATA):
+        if gamma[j] == 0.0:
+            continue
+        for a in range(3):
+            pa = DATA_SUPPORT[j, a]
+            if pa < 0:
+                continue
+            for b in range(3):
+                pb = DATA_SUPPORT[j, b]
+                if pb < 0 or DATA_FORM[j, a, b] == 0.0:
+                    continue
+                f = 2.0 * gamma[j] * DATA_FORM[j, a, b]
+                for l in range(2):
+                    k1 = WI[pa, l]
+                    for l2 in range(2):
+                        k2 = WI[pb, l2]
+                        if k1 <= k2:
+                            v = f * WC[pa, l] * WC[pb, l2]
+                            for c in range(3):
+                                ke[3 * k1 + c, 3 * k2 + c] += v
 
 
 @njit(**KERNEL)
@@ -223,70 +294,84 @@ def match_reference(alpha, Dref, R):
 # forward-mode jets (value, gradient, Hessian) in the N_JET variables
 # ---------------------------------------------------------------------------
 
+# order: 0 values, 1 and gradients, 2 and Hessians
+
 @njit(**KERNEL, inline="always")
-def _jet_zero(jv, jg, jh, o):
+def _jet_zero(jv, jg, jh, o, order):
     jv[o] = 0.0
-    for a in range(N_JET):
-        jg[o, a] = 0.0
-        for b in range(N_JET):
-            jh[o, a, b] = 0.0
+    if order >= 1:
+        for a in range(N_JET):
+            jg[o, a] = 0.0
+    if order >= 2:
+        for a in range(N_JET):
+            for b in range(N_JET):
+                jh[o, a, b] = 0.0
 
 
 @njit(**KERNEL)
-def _jet_dot(x, ia, ib, jv, jg, jh, o):
+def _jet_dot(x, ia, ib, jv, jg, jh, o, order):
     """o = x[ia:ia+3] . x[ib:ib+3] for variable blocks of x."""
-    _jet_zero(jv, jg, jh, o)
+    _jet_zero(jv, jg, jh, o, order)
     for i in range(3):
         jv[o] += x[ia + i] * x[ib + i]
-        jg[o, ia + i] += x[ib + i]
-        jg[o, ib + i] += x[ia + i]
-        jh[o, ia + i, ib + i] += 1.0
-        jh[o, ib + i, ia + i] += 1.0
+        if order >= 1:
+            jg[o, ia + i] += x[ib + i]
+            jg[o, ib + i] += x[ia + i]
+        if order >= 2:
+            jh[o, ia + i, ib + i] += 1.0
+            jh[o, ib + i, ia + i] += 1.0
 
 
 @njit(**KERNEL)
-def _jet_axpy(a, x, b, y, jv, jg, jh, o):
+def _jet_axpy(a, x, b, y, jv, jg, jh, o, order):
     """o = a x + b y (slots x, y; a, b numbers)."""
     jv[o] = a * jv[x] + b * jv[y]
-    for p in range(N_JET):
-        jg[o, p] = a * jg[x, p] + b * jg[y, p]
-        for q in range(N_JET):
-            jh[o, p, q] = a * jh[x, p, q] + b * jh[y, p, q]
+    if order >= 1:
+        for p in range(N_JET):
+            jg[o, p] = a * jg[x, p] + b * jg[y, p]
+    if order >= 2:
+        for p in range(N_JET):
+            for q in range(N_JET):
+                jh[o, p, q] = a * jh[x, p, q] + b * jh[y, p, q]
 
 
 @njit(**KERNEL)
-def _jet_mul(x, y, jv, jg, jh, o):
+def _jet_mul(x, y, jv, jg, jh, o, order):
     vx, vy = jv[x], jv[y]
     jv[o] = vx * vy
-    for p in range(N_JET):
-        jg[o, p] = vx * jg[y, p] + vy * jg[x, p]
-    for p in range(N_JET):
-        for q in range(N_JET):
-            jh[o, p, q] = (vx * jh[y, p, q] + vy * jh[x, p, q]
-                           + jg[x, p] * jg[y, q] + jg[y, p] * jg[x, q])
+    if order >= 1:
+        for p in range(N_JET):
+            jg[o, p] = vx * jg[y, p] + vy * jg[x, p]
+    if order >= 2:
+        for p in range(N_JET):
+            for q in range(N_JET):
+                jh[o, p, q] = (vx * jh[y, p, q] + vy * jh[x, p, q]
+                               + jg[x, p] * jg[y, q] + jg[y, p] * jg[x, q])
 
 
 @njit(**KERNEL)
-def _jet_unary(x, f0, f1, f2, jv, jg, jh, o):
+def _jet_unary(x, f0, f1, f2, jv, jg, jh, o, order):
     """o = f(x) with f(x) = f0, f'(x) = f1, f''(x) = f2."""
     jv[o] = f0
-    for p in range(N_JET):
-        jg[o, p] = f1 * jg[x, p]
-    for p in range(N_JET):
-        for q in range(N_JET):
-            jh[o, p, q] = f1 * jh[x, p, q] + f2 * jg[x, p] * jg[x, q]
+    if order >= 1:
+        for p in range(N_JET):
+            jg[o, p] = f1 * jg[x, p]
+    if order >= 2:
+        for p in range(N_JET):
+            for q in range(N_JET):
+                jh[o, p, q] = f1 * jh[x, p, q] + f2 * jg[x, p] * jg[x, q]
 
 
 @njit(**KERNEL)
-def _jet_sqrt(x, jv, jg, jh, o):
+def _jet_sqrt(x, jv, jg, jh, o, order):
     s = np.sqrt(jv[x])
-    _jet_unary(x, s, 0.5 / s, -0.25 / (s * jv[x]), jv, jg, jh, o)
+    _jet_unary(x, s, 0.5 / s, -0.25 / (s * jv[x]), jv, jg, jh, o, order)
 
 
 @njit(**KERNEL)
-def _jet_inv(x, jv, jg, jh, o):
+def _jet_inv(x, jv, jg, jh, o, order):
     v = jv[x]
-    _jet_unary(x, 1.0 / v, -1.0 / (v * v), 2.0 / (v * v * v), jv, jg, jh, o)
+    _jet_unary(x, 1.0 / v, -1.0 / (v * v), 2.0 / (v * v * v), jv, jg, jh, o, order)
 
 
 # jet slots
@@ -296,55 +381,58 @@ N_SLOTS = 17
 
 
 @njit(**KERNEL)
-def tangent_map(x, beta, jv, jg, jh):
+def tangent_map(x, beta, jv, jg, jh, order):
     """Jets of (m11, m12, m22) (module docstring) at x = (r_1, r_2, Ahat),
     Ahat = K^T A K, chat = (1 - beta) Ahat + beta c.  Returns False if C or Chat is not
-    positive definite."""
-    _jet_dot(x, 0, 0, jv, jg, jh, _C11)
-    _jet_dot(x, 0, 3, jv, jg, jh, _C12)
-    _jet_dot(x, 3, 3, jv, jg, jh, _C22)
+    positive definite.  order: 0 values, 1 and gradients, 2 and Hessians."""
+    _jet_dot(x, 0, 0, jv, jg, jh, _C11, order)
+    _jet_dot(x, 0, 3, jv, jg, jh, _C12, order)
+    _jet_dot(x, 3, 3, jv, jg, jh, _C22, order)
     for c in range(3):
         o = _H11 + c
-        _jet_zero(jv, jg, jh, o)
+        _jet_zero(jv, jg, jh, o, order)
         jv[o] = x[6 + c]
-        jg[o, 6 + c] = 1.0
-        _jet_axpy(1.0 - beta, o, beta, _C11 + c, jv, jg, jh, o)
+        if order >= 1:
+            jg[o, 6 + c] = 1.0
+        _jet_axpy(1.0 - beta, o, beta, _C11 + c, jv, jg, jh, o, order)
     # det C, det Chat
-    _jet_mul(_C11, _C22, jv, jg, jh, _T1)
-    _jet_mul(_C12, _C12, jv, jg, jh, _T2)
-    _jet_axpy(1.0, _T1, -1.0, _T2, jv, jg, jh, _DC)
-    _jet_mul(_H11, _H22, jv, jg, jh, _T1)
-    _jet_mul(_H12, _H12, jv, jg, jh, _T2)
-    _jet_axpy(1.0, _T1, -1.0, _T2, jv, jg, jh, _DH)
+    _jet_mul(_C11, _C22, jv, jg, jh, _T1, order)
+    _jet_mul(_C12, _C12, jv, jg, jh, _T2, order)
+    _jet_axpy(1.0, _T1, -1.0, _T2, jv, jg, jh, _DC, order)
+    _jet_mul(_H11, _H22, jv, jg, jh, _T1, order)
+    _jet_mul(_H12, _H12, jv, jg, jh, _T2, order)
+    _jet_axpy(1.0, _T1, -1.0, _T2, jv, jg, jh, _DH, order)
     if not (jv[_C11] > 0.0 and jv[_DC] > 0.0 and jv[_H11] > 0.0 and jv[_DH] > 0.0):
         return False
     # sigma = sqrt(chat11 / c11), rho = sqrt(det Chat / det C)
-    _jet_inv(_C11, jv, jg, jh, _IC11)
-    _jet_mul(_H11, _IC11, jv, jg, jh, _T1)
-    _jet_sqrt(_T1, jv, jg, jh, _SIG)
-    _jet_inv(_DC, jv, jg, jh, _T1)
-    _jet_mul(_DH, _T1, jv, jg, jh, _T2)
-    _jet_sqrt(_T2, jv, jg, jh, _RHO)
-    _jet_inv(_SIG, jv, jg, jh, _ISIG)
-    _jet_axpy(1.0, _SIG, 0.0, _SIG, jv, jg, jh, _M11)
-    _jet_mul(_RHO, _ISIG, jv, jg, jh, _M22)
+    _jet_inv(_C11, jv, jg, jh, _IC11, order)
+    _jet_mul(_H11, _IC11, jv, jg, jh, _T1, order)
+    _jet_sqrt(_T1, jv, jg, jh, _SIG, order)
+    _jet_inv(_DC, jv, jg, jh, _T1, order)
+    _jet_mul(_DH, _T1, jv, jg, jh, _T2, order)
+    _jet_sqrt(_T2, jv, jg, jh, _RHO, order)
+    _jet_inv(_SIG, jv, jg, jh, _ISIG, order)
+    _jet_axpy(1.0, _SIG, 0.0, _SIG, jv, jg, jh, _M11, order)
+    _jet_mul(_RHO, _ISIG, jv, jg, jh, _M22, order)
     # m12 = (chat12 - c12 rho) / (sigma c11)
-    _jet_mul(_C12, _RHO, jv, jg, jh, _T1)
-    _jet_axpy(1.0, _H12, -1.0, _T1, jv, jg, jh, _T2)
-    _jet_mul(_ISIG, _IC11, jv, jg, jh, _T1)
-    _jet_mul(_T2, _T1, jv, jg, jh, _M12)
+    _jet_mul(_C12, _RHO, jv, jg, jh, _T1, order)
+    _jet_axpy(1.0, _H12, -1.0, _T1, jv, jg, jh, _T2, order)
+    _jet_mul(_ISIG, _IC11, jv, jg, jh, _T1, order)
+    _jet_mul(_T2, _T1, jv, jg, jh, _M12, order)
     return True
 
 
 @njit(**KERNEL)
-def tangent_vectors(x, jv, jg, rhat, J):
-    """rhat = (rhat_1, rhat_2) (6) and J = d rhat / d x (6, N_JET) after
-    tangent_map: rhat_1 = m11 r_1, rhat_2 = m12 r_1 + m22 r_2."""
+def tangent_vectors(x, jv, jg, rhat, J, order):
+    """rhat = (rhat_1, rhat_2) (6) and, for order >= 1, J = d rhat / d x
+    (6, N_JET) after tangent_map: rhat_1 = m11 r_1, rhat_2 = m12 r_1 + m22 r_2."""
     m11, m12, m22 = jv[_M11], jv[_M12], jv[_M22]
     for i in range(3):
         r1, r2 = x[i], x[3 + i]
         rhat[i] = m11 * r1
         rhat[3 + i] = m12 * r1 + m22 * r2
+        if order == 0:
+            continue
         for p in range(N_JET):
             J[i, p] = r1 * jg[_M11, p]
             J[3 + i, p] = r1 * jg[_M12, p] + r2 * jg[_M22, p]

@@ -16,7 +16,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..discretize.dkt import apply_map, element_chart, point_map
-from ..discretize.regge import (BLEND, N_DATA, N_JET, N_SLOTS, data_maps, match_reference,
+from ..discretize.regge import (BLEND, N_DATA, N_JET, N_SLOTS, N_W, add_data_hessian,
+                                data_gradients, data_maps, data_values, match_reference,
                                 metric_coefficients, tangent_curvature, tangent_map,
                                 tangent_vectors)
 from . import KERNEL
@@ -43,9 +44,9 @@ def _element_work():
 @njit(cache=True)
 def _regge_work():
     """Work arrays of the assumed membrane metric (discretize/regge.py)."""
-    return (np.zeros((N_DATA, 9, 9)), np.zeros((3, 9)),                    # 0 S, 1 W
+    return (np.zeros((N_W, 2)), np.zeros((N_W, 3)),                        # 0 WC, 1 w
             np.zeros((MAX_POINTS, 3, N_DATA)), np.zeros((MAX_POINTS, 3, N_DATA)),  # 2 alpha, 3 work
-            np.zeros((9, 9)), np.zeros(N_DATA), np.zeros((N_DATA, 27)),     # 4 Gram, 5 D(U), 6 grad D
+            np.zeros((N_W, 3)), np.zeros(N_DATA), np.zeros((N_DATA, 27)),   # 4 w ref, 5 D(U), 6 grad D
             np.zeros(N_SLOTS), np.zeros((N_SLOTS, N_JET)),                  # 7, 8 jets
             np.zeros((N_SLOTS, N_JET, N_JET)),                              # 9 jets
             np.zeros(N_JET), np.zeros(6), np.zeros((6, N_JET)),             # 10 x, 11 rhat, 12 J
@@ -57,32 +58,10 @@ def _regge_work():
 
 
 @njit(**KERNEL)
-def _metric_data(S, blocks, G, D):
-    """D = data of the nodal vectors (regge.data_maps); G (9, 9) work."""
-    for k in range(9):
-        for l in range(k + 1):
-            g = blocks[k, 0] * blocks[l, 0] + blocks[k, 1] * blocks[l, 1] + blocks[k, 2] * blocks[l, 2]
-            G[k, l] = g
-            G[l, k] = g
-    for j in range(N_DATA):
-        s = 0.0
-        for k in range(9):
-            for l in range(9):
-                s += S[j, k, l] * G[k, l]
-        D[j] = s
-
-
-@njit(**KERNEL)
-def _regge_element_terms(mode, S, bcur, gamma, X, Y, dD, XdD, ge, ke):
+def _regge_element_terms(mode, WC, w, gamma, X, Y, dD, XdD, ge, ke):
     """Add the terms through the data to ge and the upper triangle of ke:
-    ge += sum_j gamma_j dD_j,  ke += X dD + (X dD)^T + dD^T Y dD + 2 sum_j gamma_j S_j (x) I3."""
-    for j in range(N_DATA):
-        for k in range(9):
-            for c in range(3):
-                s = 0.0
-                for l in range(9):
-                    s += S[j, k, l] * bcur[l, c]
-                dD[j, 3 * k + c] = 2.0 * s
+    ge += sum_j gamma_j dD_j,  ke += X dD + (X dD)^T + dD^T Y dD + sum_j gamma_j d2 D_j."""
+    data_gradients(WC, w, dD)
     for k in range(9):
         for c in range(3):
             s = 0.0
@@ -104,16 +83,7 @@ def _regge_element_terms(mode, S, bcur, gamma, X, Y, dD, XdD, ge, ke):
             for j in range(N_DATA):
                 s += dD[j, p] * XdD[j, q] + X[p, j] * dD[j, q]
             ke[p, q] += s
-    for j in range(N_DATA):
-        f = 2.0 * gamma[j]
-        if f == 0.0:
-            continue
-        for k in range(9):
-            for l in range(k, 9):
-                v = f * S[j, k, l]
-                if v != 0.0:
-                    for c in range(3):
-                        ke[3 * k + c, 3 * l + c] += v
+    add_data_hessian(WC, gamma, ke)
 
 
 @njit(**KERNEL)
@@ -124,7 +94,7 @@ def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wt
     zf: follower pressure on the face Z = zf (point_kernel).  Returns (L, status)."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
-    (S, Wd, alpha, Fw, gram, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
+    (WC, wv, alpha, Fw, wref, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
      Xr, Yr, gam, g6, T3, XdD, Dref) = rw
     n0, n1, n2 = tri[e, 0], tri[e, 1], tri[e, 2]
     nodes = (n0, n1, n2)
@@ -151,7 +121,7 @@ def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wt
                 ke[p, q] = 0.0
     if regge:
         beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
-        data_maps(Q, et, el, S, Wd)
+        data_maps(Q, et, el, WC)
         metric_coefficients(bary, wts, et, alpha, Fw)
         for j in range(N_DATA):
             gam[j] = 0.0
@@ -159,8 +129,8 @@ def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wt
                 Yr[j, i] = 0.0
             for p in range(27):
                 Xr[p, j] = 0.0
-        _metric_data(S, bcur, gram, D)
-        _metric_data(S, bref, gram, Dref)
+        data_values(WC, bref, wref, Dref)
+        data_values(WC, bcur, wv, D)
     for iq in range(bary.shape[0]):
         lam = bary[iq]
         point_map(lam, Q, gl, et, el, b, C)
@@ -208,9 +178,9 @@ def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wt
                 for j in range(N_DATA):
                     s += alpha[iq, c, j] * D[j]
                 x9[6 + c] = s
-            if not tangent_map(x9, beta, jv, jg, jh):
+            if not tangent_map(x9, beta, jv, jg, jh, mode):
                 return np.nan, ERR_METRIC
-            tangent_vectors(x9, jv, jg, rhat, Jf)
+            tangent_vectors(x9, jv, jg, rhat, Jf, mode)
             for i in range(15):
                 vhat[i] = rhat[i] if i < 6 else v[i]
             L, st = point_kernel(mode, level, kind, psi, params, h, vhat, ref, G0, G1, dG0, qb,
@@ -249,7 +219,7 @@ def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wt
                             s += b[a, k] * T15[3 * a + c, col]
                         ke[row, col] += w * s
     if regge and mode >= 1:
-        _regge_element_terms(mode, S, bcur, gam, Xr, Yr, gD, XdD, ge, ke)
+        _regge_element_terms(mode, WC, wv, gam, Xr, Yr, gD, XdD, ge, ke)
     return Le, OK
 
 
