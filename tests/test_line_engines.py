@@ -105,15 +105,19 @@ def test_growth_given_as_nodal_arrays_equals_the_function():
         sph.set_stretch_growth(np.where(np.arange(33) == 3, np.nan, 1.0), 1.0)
 
 
+@pytest.mark.parametrize("face", [None, "inner", "outer", "middle"])
 @pytest.mark.parametrize("engine", ["planestrain", "axisym"])
-def test_assembled_gradient_and_hessian_match_finite_differences(engine):
+def test_assembled_gradient_and_hessian_match_finite_differences(engine, face):
     """Observed: gradient 1e-10, Hessian 7e-11 relative (central differences,
-    step 1e-6, random state near the reference, growth with G1, poles)."""
+    step 1e-6, random state near the reference, growth with G1, poles), also
+    with a follower pressure on a face."""
     law = NeoHookean(1.0, D=2.0)
     eng = (PlaneStrainShell.strip(6, np.pi / 2, 0.02, law) if engine == "planestrain"
            else AxisymmetricShell.sphere(6, 1.0, 0.1, law))
     eng.set_growth(G0=np.diag([1.2, 1.0, 1.1]), G1=np.diag([2.0, 0.5, 0.0]))
     eng.face_tractions(q_plus=[0.01, 0.0, 0.02])
+    if face is not None:
+        eng.pressure(0.03, face=face)
     eng.fix_coordinate(0, "b")
     eng._setup()
     eng.set_parameter(0.7)

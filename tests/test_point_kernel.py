@@ -197,3 +197,49 @@ def test_small_spd_helpers_solve_like_numpy():
         mv3(inv, x, x)                    # aliasing in/out
         assert np.array_equal(x, y)
     assert not chol3(-np.eye(3), lo)
+
+
+@pytest.mark.parametrize("level", LEVELS)
+@pytest.mark.parametrize("surface", sorted(SURFACES))
+@pytest.mark.parametrize("face", [-0.5, 0.5])
+def test_face_pressure_derivatives_against_finite_differences(level, surface, face):
+    """Follower pressure p on the face Z = face h (docs/pressure.md): its loads
+    m_p, qbar_p, dm_p follow the current normal, so they are differentiated
+    through y1, Y_a, y2 too (observed: as the test above)."""
+    law = LAWS["neo-hookean"]()
+    rng = np.random.default_rng(zlib.crc32(f"pressure{level}{surface}{face}".encode()))
+    ref, v, kw = random_state(rng, surface)
+    kw["face_pressure"] = (0.3 * H_THICK, face * H_THICK)
+    r = evaluate_point(law, v, ref, H_THICK, level, **kw)
+    g, hs = fd_derivatives(law, v, ref, level, kw)
+    assert np.abs(g - r.grad).max() <= 1e-7 * np.abs(r.grad).max()
+    assert np.abs(hs - r.hess).max() <= 1e-7 * np.abs(r.hess).max()
+    assert np.abs(r.hess - r.hess.T).max() <= 1e-13 * np.abs(r.hess).max()
+
+
+def test_face_pressure_at_fixed_geometry_is_the_equivalent_face_traction():
+    """At a given state the face pressure acts as the dead tractions it exerts
+    there: q- = p n_c on Z = -h/2 gives the same directors y1, y2 and, at the
+    bending level (no face-area term), the same energy."""
+    law = LAWS["neo-hookean"]()
+    rng = np.random.default_rng(3)
+    ref, v, kw = random_state(rng, "sphere", with_loads=False)
+    p = 0.3 * H_THICK
+    nc = np.cross(v[0:3], v[3:6]) / np.linalg.norm(np.cross(ref[0:3], ref[3:6]))
+    # d(n_c)/dtheta^a with j_a / j = g^b . R_ba
+    j = np.linalg.norm(np.cross(ref[0:3], ref[3:6]))
+    M = np.array([[ref[0:3] @ ref[0:3], ref[0:3] @ ref[3:6]], [ref[0:3] @ ref[3:6], ref[3:6] @ ref[3:6]]])
+    gup = np.linalg.solve(M, np.array([ref[0:3], ref[3:6]]))
+    Rab = {(0, 0): ref[6:9], (0, 1): ref[9:12], (1, 0): ref[9:12], (1, 1): ref[12:15]}
+    rab = {(0, 0): v[6:9], (0, 1): v[9:12], (1, 0): v[9:12], (1, 1): v[12:15]}
+    dnc = np.array([(np.cross(rab[0, a], v[3:6]) + np.cross(v[0:3], rab[1, a])) / j
+                    - nc * (gup[0] @ Rab[0, a] + gup[1] @ Rab[1, a]) for a in range(2)])
+    dead = dict(kw, qbar=p * nc / H_THICK, m=-p * nc / 2, dm=-p * dnc / 2)
+    follower = dict(kw, face_pressure=(p, -0.5 * H_THICK))
+    for level in ("membrane", "bending", "consistent"):
+        a = evaluate_point(law, v, ref, H_THICK, level, mode="energy", **dead)
+        b = evaluate_point(law, v, ref, H_THICK, level, mode="energy", **follower)
+        np.testing.assert_allclose(a.y1, b.y1, rtol=1e-13)
+        np.testing.assert_allclose(a.y2, b.y2, rtol=1e-12, atol=1e-14)
+        if level != "consistent":
+            assert a.L == pytest.approx(b.L, rel=1e-13)

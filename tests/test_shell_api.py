@@ -124,6 +124,10 @@ def test_bad_input_is_rejected_with_a_clear_message():
         s.symmetry("x", 5.0)
     with pytest.raises(ValueError, match="pressure must be finite"):
         s.pressure(np.inf)
+    with pytest.raises(ValueError, match="pressure face 'top': choose 'inner', 'outer' or 'middle'"):
+        s.pressure(1.0, face="top")
+    with pytest.raises(ValueError, match="membrane='cst': choose one of"):
+        Shell(mesh, 0.1, LAW, membrane="cst")
     with pytest.raises(TypeError):
         Shell(mesh, 0.1, "rubber")
 

@@ -37,6 +37,22 @@ def level_id(level):
         raise ValueError(f"unknown model level {level!r}; choose one of {sorted(LEVELS)}") from None
 
 
+FACES = {"inner": -0.5, "outer": 0.5}       # Z / h of the faces
+
+
+def pressure_face(face, h):
+    """Z of the face a follower pressure acts on (``pressure(p, face=...)``):
+    ``"inner"`` Z = -h/2 (the side the normal points away from), ``"outer"``
+    Z = +h/2; ``"middle"``: None (the potential -p V of the middle surface,
+    first order in h; docs/pressure.md)."""
+    if face == "middle":
+        return None
+    try:
+        return FACES[face] * h
+    except KeyError:
+        raise ValueError(f"pressure face {face!r}: choose 'inner', 'outer' or 'middle'") from None
+
+
 def check_thickness(h):
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"thickness h={h!r} must be a finite positive number")
@@ -64,14 +80,17 @@ def _arr(x, shape, default=0.0):
 
 
 def evaluate_point(law, v, ref, h, level="consistent", G0=None, G1=None, dG0=None,
-                   qbar=None, m=None, dm=None, y1=None, mode="hessian", scratch=None):
+                   qbar=None, m=None, dm=None, y1=None, mode="hessian", scratch=None,
+                   face_pressure=(0.0, 0.0)):
     """Energy density of MODEL.md section 4 at one point, with derivatives.
 
     ``v``/``ref``: 15 numbers ``(r_1, r_2, r_11, r_12, r_22)`` of the current and
     reference middle surface in any local coordinates (not necessarily
     orthonormal).  Growth ``G(Z) = G0 + Z G1`` (3x3, default identity / zero),
     ``dG0`` (2x3x3) its surface derivatives; ``qbar``, ``m``, ``dm`` the load
-    resultants of eq:qm.  Raises :class:`ShellError` on failure.
+    resultants of eq:qm; ``face_pressure = (p, Z)``: a follower pressure p on
+    the face Z (docs/pressure.md; the volume of the middle surface is the
+    discretization's).  Raises :class:`ShellError` on failure.
     """
     lev = level_id(level)
     h = check_thickness(h)
@@ -87,8 +106,9 @@ def evaluate_point(law, v, ref, h, level="consistent", G0=None, G1=None, dG0=Non
     grad = np.zeros(15)
     hess = np.zeros((15, 15))
     sc = new_scratch() if scratch is None else scratch
+    pf, zf = (float(x) for x in face_pressure)
     L, status = point_kernel(MODES[mode], lev, law.kind, law.psi, law.params, h, v, ref,
-                             G0, G1, dG0, qbar, m, dm, y1, y2, grad, hess, sc)
+                             G0, G1, dG0, qbar, m, dm, y1, y2, grad, hess, sc, pf, zf)
     if status != OK:
         raise ShellError(f"point kernel failed: {STATUS_TEXT[status]}")
     return PointResult(L, grad, hess, y1, y2)

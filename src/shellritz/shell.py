@@ -25,12 +25,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from .discretize.dkt import rule
-from .kernels.assembly import (add_position_blocks, assemble_dkt, color_elements,
-                               hessian_pattern)
-from .kernels.point import STATUS_TEXT
+from .kernels.assembly import (ELEMENT_STATUS_TEXT, add_position_blocks, assemble_dkt,
+                               color_elements, hessian_pattern)
 from .materials import Law
 from .mesh import Mesh, MeshError
-from .model import check_thickness, level_id
+from .model import check_thickness, level_id, pressure_face
 from .solve import EvaluationError, Solvable
 from .strain_gradient import DKTStrainGradient, dkt_active_elements
 from .validity import dkt_validity
@@ -74,9 +73,14 @@ class Shell(Solvable):
     material : a materials.Law
     level : "membrane" | "bending" | "consistent" (MODEL.md section 4)
     quadrature : points of the triangle rule (default 6, see README)
+    membrane : "dkt" (the metric of the DKT gradient field) or "regge" (the
+        assumed, locking-free metric of discretize/regge.py; README, Membrane locking)
     """
 
-    def __init__(self, mesh, thickness, material, level="consistent", quadrature=6):
+    MEMBRANES = ("dkt", "regge")
+
+    def __init__(self, mesh, thickness, material, level="consistent", quadrature=6,
+                 membrane="dkt"):
         if not isinstance(mesh, Mesh):
             raise TypeError("mesh must be a shellritz.Mesh")
         if not isinstance(material, Law):
@@ -87,6 +91,9 @@ class Shell(Solvable):
         self.level = level
         self._level = level_id(level)
         self.bary, self.wts = rule(quadrature)
+        if membrane not in self.MEMBRANES:
+            raise ValueError(f"membrane={membrane!r}: choose one of {self.MEMBRANES}")
+        self.membrane = membrane
         # the h^5 strain-gradient term that keeps the bending levels bounded
         # below on fine meshes (strain_gradient.py, docs/validity.md)
         active = dkt_active_elements(mesh, self.h)
@@ -110,6 +117,7 @@ class Shell(Solvable):
         self._q_plus = np.zeros((n, 3))
         self._q_minus = np.zeros((n, 3))
         self._pressure = 0.0
+        self._pressure_z = None
         self._prepared = False
 
     # ------------------------------------------------------------------ growth
@@ -422,12 +430,17 @@ class Shell(Solvable):
             setattr(self, attr, _field(val, n, (3,), attr[1:]))
         return self
 
-    def pressure(self, p):
-        """Pressure p (follower) as the potential -p V, V the volume enclosed by
-        the surface and the origin (closed surfaces or surfaces with fixed edges)."""
+    def pressure(self, p, face="middle"):
+        """Follower pressure p on a face (docs/pressure.md): the potential -p V,
+        V the volume enclosed by the face ``"inner"`` (Z = -h/2) or ``"outer"``
+        (Z = +h/2) and the origin, to the order of the model; ``"middle"``: the
+        volume of the middle surface (first order in h).  p > 0 pushes along
+        the normal (inflates a closed surface with outward normals).  Closed
+        surfaces or surfaces with fixed edges."""
         if not np.isfinite(p):
             raise ValueError("pressure must be finite")
         self._pressure = float(p)
+        self._pressure_z = pressure_face(face, self.h)
         return self
 
     # ------------------------------------------------------------------ setup
@@ -565,15 +578,17 @@ class Shell(Solvable):
         # trial states (line search) start from, but do not overwrite, the warm starts
         Y1 = self.Y1 if mode > 0 else self.Y1.copy()
         has_load = bool(np.any(self._qp_t) or np.any(self._qm_t))
+        face = self._pressure_z
         assemble_dkt(mode, self._level, self.law.kind, self.law.psi, self.law.params, self.h,
-                     self.mesh.triangles, self.X, self.frames, U, self.bary, self.wts,
-                     self._Gt0, self._Gt1, self._qp_t, self._qm_t, has_load, Y1, self.Y2,
-                     self._order, self._colour_start, self._emap, numba.get_num_threads(),
-                     self._Le, self._G, data, self._status)
+                     self.membrane == "regge", self.mesh.triangles, self.X, self.frames, U,
+                     self.bary, self.wts, self._Gt0, self._Gt1, self._qp_t, self._qm_t, has_load,
+                     0.0 if face is None else self._p_t, 0.0 if face is None else face,
+                     Y1, self.Y2, self._order, self._colour_start, self._emap,
+                     numba.get_num_threads(), self._Le, self._G, data, self._status)
         if self._status.any():
             e = int(np.argmax(self._status != 0))
             raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "
-                                  f"{STATUS_TEXT[int(self._status[e])]}")
+                                  f"{ELEMENT_STATUS_TEXT[int(self._status[e])]}")
         if self.strain_gradient is not None:
             self.strain_gradient.add(mode, self, U, self._Le, self._G, data)
         r = U[:, 0]

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from ..kernels.line_assembly import assemble_line
 from ..kernels.point import STATUS_TEXT, _reference_geometry
 from ..materials import Law
-from ..model import check_thickness, level_id
+from ..model import check_thickness, level_id, pressure_face
 from ..solve import EvaluationError, Solvable
 from .. import strain_gradient
 from ..validity import line_validity
@@ -71,6 +71,7 @@ class LineShell(Solvable):
         self._growth_ramp = True
         self._q_plus = self._q_minus = None
         self._pressure = 0.0
+        self._pressure_z = None
         self._edge_forces = np.zeros((self.n_nodes, 2))
         self._fixed = np.zeros((self.n_nodes, 4), bool)
         self._bc = []
@@ -234,12 +235,16 @@ class LineShell(Solvable):
         self._q_plus, self._q_minus = as_fn(q_plus), as_fn(q_minus)
         return self
 
-    def pressure(self, p):
-        """Follower pressure as the potential -p V (V: enclosed volume; per
-        unit width for plane strain)."""
+    def pressure(self, p, face="middle"):
+        """Follower pressure p on a face (docs/pressure.md): the potential -p V,
+        V the volume (per unit width for plane strain) enclosed by the face
+        ``"inner"`` (Z = -h/2) or ``"outer"`` (Z = +h/2), to the order of the
+        model; ``"middle"``: by the middle surface (first order in h).  p > 0
+        pushes along the normal."""
         if not np.isfinite(p):
             raise ValueError("pressure must be finite")
         self._pressure = float(p)
+        self._pressure_z = pressure_face(face, self.h)
         return self
 
     def edge_load(self, end, force):
@@ -436,10 +441,12 @@ class LineShell(Solvable):
         U = self.U.copy()
         U[self.free] = x
         Y1 = self.Y1 if mode > 0 else self.Y1.copy()
+        face = self._pressure_z
         assemble_line(mode, self._level, self.law.kind, self.law.psi, self.law.params, self.h,
                       self.elem_dofs, self.qelem, self.B, self.c, self.REF, self.W, U,
-                      self._G0q, self._G1q, self._dG0, self._QB, self._M, self._DM, Y1, self.Y2,
-                      self._Lq, self._Gq, self._Hq, self._status)
+                      self._G0q, self._G1q, self._dG0, self._QB, self._M, self._DM,
+                      0.0 if face is None else self._p_t, 0.0 if face is None else face,
+                      Y1, self.Y2, self._Lq, self._Gq, self._Hq, self._status)
         if self._status.any():
             q = int(np.argmax(self._status != 0))
             raise EvaluationError(f"point s = {self.sq[q]:.6g} (element {self.qelem[q]}): "

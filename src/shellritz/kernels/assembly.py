@@ -16,8 +16,18 @@ import numpy as np
 from numba import njit, prange
 
 from ..discretize.dkt import apply_map, element_chart, gather_element, point_map
+from ..discretize.regge import (BLEND, N_DATA, N_JET, N_SLOTS, N_W, add_data_hessian,
+                                data_gradients, data_maps, data_values, match_reference,
+                                metric_coefficients, tangent_curvature, tangent_map,
+                                tangent_vectors)
 from . import KERNEL
-from .point import OK, _reference_geometry, new_scratch, point_kernel
+from .point import OK, STATUS_TEXT, _reference_geometry, new_scratch, point_kernel
+
+ERR_METRIC = 100        # element-level status (the point kernel's are below)
+ELEMENT_STATUS_TEXT = dict(STATUS_TEXT)
+ELEMENT_STATUS_TEXT[ERR_METRIC] = ("assumed membrane metric not positive definite "
+                                   "(discretize/regge.py)")
+MAX_POINTS = 7          # largest quadrature rule (dkt.RULES)
 
 
 @njit(cache=True)
@@ -31,13 +41,61 @@ def _element_work():
             np.zeros((3, 3)), np.zeros((2, 3)))
 
 
+@njit(cache=True)
+def _regge_work():
+    """Work arrays of the assumed membrane metric (discretize/regge.py)."""
+    return (np.zeros((N_W, 2)), np.zeros((N_W, 3)),                        # 0 WC, 1 w
+            np.zeros((MAX_POINTS, 3, N_DATA)), np.zeros((MAX_POINTS, 3, N_DATA)),  # 2 alpha, 3 work
+            np.zeros((N_W, 3)), np.zeros(N_DATA), np.zeros((N_DATA, 27)),   # 4 w ref, 5 D(U), 6 grad D
+            np.zeros(N_SLOTS), np.zeros((N_SLOTS, N_JET)),                  # 7, 8 jets
+            np.zeros((N_SLOTS, N_JET, N_JET)),                              # 9 jets
+            np.zeros(N_JET), np.zeros(6), np.zeros((6, N_JET)),             # 10 x, 11 rhat, 12 J
+            np.zeros((N_JET, N_JET)), np.zeros((3, N_JET)), np.zeros(15),   # 13 H9, 14 phi, 15 vhat
+            np.zeros((15, N_JET)), np.zeros((15, 3)), np.zeros((3, 3)),     # 16 HJ, 17 H_zA, 18 H_AA
+            np.zeros((27, N_DATA)), np.zeros((N_DATA, N_DATA)),             # 19 X, 20 Y
+            np.zeros(N_DATA), np.zeros(6), np.zeros((27, 3)),               # 21 gamma, 22 g6, 23 work
+            np.zeros((N_DATA, 27)), np.zeros(N_DATA))                       # 24 work, 25 D(U_ref)
+
+
 @njit(**KERNEL)
-def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n,
-             qp, qm, has_load, Y1, Y2, ge, ke, sc, wk):
+def _regge_element_terms(mode, WC, w, gamma, X, Y, dD, XdD, ge, ke):
+    """Add the terms through the data to ge and the upper triangle of ke:
+    ge += sum_j gamma_j dD_j,  ke += X dD + (X dD)^T + dD^T Y dD + sum_j gamma_j d2 D_j."""
+    data_gradients(WC, w, dD)
+    for k in range(9):
+        for c in range(3):
+            s = 0.0
+            for j in range(N_DATA):
+                s += gamma[j] * dD[j, 3 * k + c]
+            ge[k, c] += s
+    if mode < 2:
+        return
+    # XdD[j, q] = (Y dD)[j, q] + X[q, j]  ->  ke[p, q] += dD[:, p] . XdD[:, q] + X[p, :] . dD[:, q]
+    for j in range(N_DATA):
+        for q in range(27):
+            s = X[q, j]
+            for i in range(N_DATA):
+                s += Y[j, i] * dD[i, q]
+            XdD[j, q] = s
+    for p in range(27):
+        for q in range(p, 27):
+            s = 0.0
+            for j in range(N_DATA):
+                s += dD[j, p] * XdD[j, q] + X[p, j] * dD[j, q]
+            ke[p, q] += s
+    add_data_hessian(WC, gamma, ke)
+
+
+@njit(**KERNEL)
+def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n,
+             qp, qm, has_load, pf, zf, Y1, Y2, ge, ke, sc, wk, rw):
     """Energy of element e; ge (9, 3) and the upper triangle of ke (27, 27) if
-    mode asks. Returns (L, status)."""
+    mode asks; regge: the assumed membrane metric (discretize/regge.py); pf,
+    zf: follower pressure on the face Z = zf (point_kernel).  Returns (L, status)."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
+    (WC, wv, alpha, Fw, wref, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
+     Xr, Yr, gam, g6, T3, XdD, Dref) = rw
     gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
     n0, n1, n2 = tri[e, 0], tri[e, 1], tri[e, 2]
     area = element_chart(Xe, Te, Q, gl, et, el)
@@ -50,6 +108,18 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
         for p in range(27):
             for q in range(27):
                 ke[p, q] = 0.0
+    if regge:
+        beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
+        data_maps(Q, et, el, WC)
+        metric_coefficients(bary, wts, et, alpha, Fw)
+        for j in range(N_DATA):
+            gam[j] = 0.0
+            for i in range(N_DATA):
+                Yr[j, i] = 0.0
+            for p in range(27):
+                Xr[p, j] = 0.0
+        data_values(WC, bref, wref, Dref)
+        data_values(WC, bcur, wv, D)
     for iq in range(bary.shape[0]):
         lam = bary[iq]
         point_map(lam, Q, gl, et, el, b, C)
@@ -86,11 +156,33 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
                     dm[a, c] = 0.5 * (mup * dqp - mum * dqm)
         y1 = Y1[e, iq]
         y2 = Y2[e, iq]
-        L, st = point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0, qb, m, dm,
-                             y1, y2, grad, hess, sc)
+        if regge:
+            # x = (r_1, r_2, Ahat), Ahat = K^T A(U) K (regge.py)
+            if not match_reference(alpha[iq], Dref, ref):
+                return np.nan, ERR_METRIC
+            for i in range(6):
+                x9[i] = v[i]
+            for c in range(3):
+                s = 0.0
+                for j in range(N_DATA):
+                    s += alpha[iq, c, j] * D[j]
+                x9[6 + c] = s
+            if not tangent_map(x9, beta, jv, jg, jh, mode):
+                return np.nan, ERR_METRIC
+            tangent_vectors(x9, jv, jg, rhat, Jf, mode)
+            for i in range(15):
+                vhat[i] = rhat[i] if i < 6 else v[i]
+            L, st = point_kernel(mode, level, kind, psi, params, h, vhat, ref, G0, G1, dG0, qb,
+                                 m, dm, y1, y2, grad, hess, sc, pf, zf)
+        else:
+            L, st = point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0, qb, m,
+                                 dm, y1, y2, grad, hess, sc, pf, zf)
         if st != OK:
             return np.nan, st
         Le += w * L
+        if regge and mode >= 1:
+            _regge_point(mode, iq, w, b, alpha, x9, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ,
+                         HzA, HAA, T3, Xr, Yr, gam)
         if mode >= 1:
             for k in range(9):
                 for c in range(3):
@@ -115,7 +207,76 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
                         for a in range(5):
                             s += b[a, k] * T15[3 * a + c, col]
                         ke[row, col] += w * s
+    if regge and mode >= 1:
+        _regge_element_terms(mode, WC, wv, gam, Xr, Yr, gD, XdD, ge, ke)
     return Le, OK
+
+
+@njit(**KERNEL)
+def _regge_point(mode, iq, w, b, alpha, x, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ, HzA,
+                 HAA, T3, Xr, Yr, gam):
+    """Chain rule through rhat(r_1, r_2, Ahat) at a point: grad, hess (kernel
+    derivatives in vhat) become those in (r_1, r_2, r_ab) with Ahat fixed; the
+    Ahat parts go to gam (gradient), Xr and Yr (Hessian) through the data."""
+    for i in range(6):
+        g6[i] = grad[i]
+    # gradient: d/dx = Jf^T g6
+    for p in range(N_JET):
+        s = 0.0
+        for i in range(6):
+            s += Jf[i, p] * g6[i]
+        if p < 6:
+            grad[p] = s
+        else:
+            for j in range(N_DATA):
+                gam[j] += w * s * alpha[iq, p - 6, j]
+    if mode < 2:
+        return
+    # HJ = hess[:, 0:6] Jf (15 x 9); H9 = Jf^T HJ[0:6] + d2(g6 . rhat)/dx2
+    for r in range(15):
+        for p in range(N_JET):
+            s = 0.0
+            for i in range(6):
+                s += hess[r, i] * Jf[i, p]
+            HJ[r, p] = s
+    tangent_curvature(x, g6, jv, jg, jh, H9, phi)
+    for p in range(N_JET):
+        for q in range(N_JET):
+            s = 0.0
+            for i in range(6):
+                s += Jf[i, p] * HJ[i, q]
+            H9[p, q] += s
+    for r in range(15):
+        for c in range(3):
+            HzA[r, c] = H9[r, 6 + c] if r < 6 else HJ[r, 6 + c]
+    for c in range(3):
+        for c2 in range(3):
+            HAA[c, c2] = H9[6 + c, 6 + c2]
+    for p in range(6):
+        for q in range(6):
+            hess[p, q] = H9[p, q]
+        for r in range(6, 15):
+            hess[p, r] = HJ[r, p]
+            hess[r, p] = HJ[r, p]
+    # Xr += w (b (x) I3)^T HzA alpha_q,  Yr += w alpha_q^T HAA alpha_q
+    for k in range(9):
+        for c in range(3):
+            for m in range(3):
+                s = 0.0
+                for a in range(5):
+                    s += b[a, k] * HzA[3 * a + c, m]
+                T3[3 * k + c, m] = w * s
+    for p in range(27):
+        for j in range(N_DATA):
+            Xr[p, j] += (T3[p, 0] * alpha[iq, 0, j] + T3[p, 1] * alpha[iq, 1, j]
+                         + T3[p, 2] * alpha[iq, 2, j])
+    for c in range(3):
+        for j in range(N_DATA):
+            s = 0.0
+            for c2 in range(3):
+                s += HAA[c, c2] * alpha[iq, c2, j]
+            for i in range(N_DATA):
+                Yr[i, j] += w * alpha[iq, c, i] * s
 
 
 @njit(cache=True)
@@ -163,9 +324,9 @@ def color_elements(tri, n_nodes):
 
 
 @njit(cache=True, parallel=True)
-def assemble_dkt(mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n,
-                 qp, qm, has_load, Y1, Y2, order, colour_start, emap, n_threads, Le, G, data,
-                 status):
+def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n,
+                 qp, qm, has_load, pf, zf, Y1, Y2, order, colour_start, emap, n_threads, Le, G,
+                 data, status):
     """Element energies Le (E); for mode >= 1 the gradient G (n, 3, 3), for
     mode >= 2 the Hessian values data (positions emap), both overwritten.
 
@@ -173,7 +334,10 @@ def assemble_dkt(mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n
     order[colour_start[c]:colour_start[c + 1]] (see color_elements);
     n_threads: numba.get_num_threads() of the caller (a colour runs as
     4 n_threads chunks).
-    status[e] = point-kernel status of the first failing point (0: ok).
+    regge: the assumed membrane metric of discretize/regge.py (else the DKT one).
+    pf, zf: the points' part of a follower pressure pf on the face Z = zf
+    (point_kernel; the volume of the positions is the caller's).
+    status[e] = point-kernel status of the first failing point, or ERR_METRIC (0: ok).
     """
     if mode >= 1:
         G[:] = 0.0
@@ -186,13 +350,14 @@ def assemble_dkt(mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n
         for ch in prange(nchunk):
             sc = new_scratch()
             wk = _element_work()
+            rw = _regge_work()
             ge = np.zeros((9, 3))
             ke = np.zeros((27, 27))
             for j in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
                 e = order[j]
-                Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, tri, X, T,
-                                            U, bary, wts, G0n, G1n, qp, qm, has_load, Y1, Y2,
-                                            ge, ke, sc, wk)
+                Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, regge, tri, X,
+                                            T, U, bary, wts, G0n, G1n, qp, qm, has_load, pf, zf,
+                                            Y1, Y2, ge, ke, sc, wk, rw)
                 if status[e] == OK:
                     scatter_element(e, mode, tri, ge, ke, emap, G, data)
 

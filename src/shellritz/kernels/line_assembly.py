@@ -16,11 +16,12 @@ N_CHUNK = 256
 
 @njit(cache=True, parallel=True)
 def assemble_line(mode, level, kind, psi, params, h, elem_dofs, qelem, B, c, REF, W, U,
-                  G0, G1, dG0, QB, M, DM, Y1, Y2, Lq, Gq, Hq, status):
+                  G0, G1, dG0, QB, M, DM, pf, zf, Y1, Y2, Lq, Gq, Hq, status):
     """Per-point energy Lq (nq), gradient Gq (nq, 8), Hessian Hq (nq, 8, 8).
 
     elem_dofs (ne, 8): global DOFs of each element; qelem (nq): element of
-    each point; U: global DOF vector.
+    each point; U: global DOF vector; pf, zf: the points' part of a follower
+    pressure pf on the face Z = zf (point_kernel).
     """
     nq = qelem.shape[0]
     nchunk = min(nq, N_CHUNK)
@@ -41,7 +42,7 @@ def assemble_line(mode, level, kind, psi, params, h, elem_dofs, qelem, B, c, REF
                     s += B[q, r, k] * ue[k]
                 v[r] = s
             L, st = point_kernel(mode, level, kind, psi, params, h, v, REF[q], G0[q], G1[q],
-                                 dG0[q], QB[q], M[q], DM[q], Y1[q], Y2[q], grad, hess, sc)
+                                 dG0[q], QB[q], M[q], DM[q], Y1[q], Y2[q], grad, hess, sc, pf, zf)
             status[q] = st
             if st != OK:
                 Lq[q] = np.nan

@@ -121,7 +121,9 @@ def new_scratch():
             np.zeros((2, 3, 9)),    # 27 D4 pairs (c, d) of the Hessian block H00
             np.zeros(3),            # 28 D4 pair weights
             np.zeros((2, 9, NV)),   # 29 H01^T J0, H0a^T J0
-            np.zeros((NV, NX)))     # 30 cross block of the Hessian
+            np.zeros((NV, NX)),     # 30 cross block of the Hessian
+            np.zeros((NV + 9, NV + 9)),   # 31 face pressure: Hessian in (v, y1, Y1, Y2)
+            np.zeros((NV + 9, NV)))       # 32 face pressure: work
 
 
 # ---------------------------------------------------------------------------
@@ -347,7 +349,7 @@ def _right_map(M, Q, out):
 
 @njit(**KERNEL)
 def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
-                 qbar, m, dm, y1, y2, grad, hess, sc):
+                 qbar, m, dm, y1, y2, grad, hess, sc, pf=0.0, zf=0.0):
     """Energy density L at one point, and grad (15) / hess (15x15) if asked.
 
     mode: MODE_ENERGY | MODE_GRADIENT | MODE_HESSIAN; level: LEVEL_*.
@@ -356,6 +358,9 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     G0, G1: growth G(Z) = G0 + Z G1 (global 3x3); dG0[a] = dG0/dtheta^a.
     qbar, m, dm[a]: load resultants (eq:qm) and dm/dtheta^a.
     y1: in: warm start (zeros: none); out: the director.  y2: out.
+    pf, zf: follower pressure pf on the face Z = zf (docs/pressure.md): the
+    point's part of -pf V(face), i.e. without the volume of the middle
+    surface, which the discretization adds.
     Returns (L, status); status != OK leaves L = nan.
 
     Internally all vectors are taken to the local frame (spatial components
@@ -375,8 +380,15 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     _rot_t(E, dm[0], loc[2])
     _rot_t(E, dm[1], loc[3])
     _rot_t(E, y1, loc[4])
+    # j_{,a} / j = g^b . R_{ba} (j = |R_1 x R_2|), for the face pressure
+    gup = sc[23]
+    ga0 = ga1 = 0.0
+    for i in range(3):
+        ga0 += gup[0, i] * ref[6 + i] + gup[1, i] * ref[9 + i]
+        ga1 += gup[0, i] * ref[9 + i] + gup[1, i] * ref[12 + i]
     L, status = _kernel_local(mode, level, kind, psi, params, h, vl, H, K, G0, G1, dG0,
-                              loc[0], loc[1], loc[2:4], loc[4], loc[5], grad, hess, sc)
+                              loc[0], loc[1], loc[2:4], loc[4], loc[5], grad, hess, sc,
+                              pf, zf, ga0, ga1)
     if status != OK:
         return L, status
     _rot(E, loc[4], y1)
@@ -420,8 +432,10 @@ def _rot(E, x, out):
 
 @njit(**KERNEL)
 def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
-                  qbar, m, dm, y1, y2, grad, hess, sc):
-    """point_kernel with every vector in the local frame (see point_kernel)."""
+                  qbar, m, dm, y1, y2, grad, hess, sc, pf, zf, ga0, ga1):
+    """point_kernel with every vector in the local frame (see point_kernel);
+    ga0, ga1: j_{,a}/j of the reference (face pressure).  qbar, m, dm are
+    the caller's work copies: the face pressure is added to them."""
     mv, mm, mp = sc[0]
     E, Lam, dgup, na, kap, gr = sc[1], sc[2], sc[3], sc[4], sc[5], sc[6]
     CA, U, S, vec, sv, B3 = sc[7], sc[8], sc[9], sc[10], sc[11], sc[12]
@@ -531,6 +545,9 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
         # orient with the reference normal: same sign as (R_1 x R_2).(r_1 x r_2)
         for i in range(3):
             y1[i] = ff[i] / nf * G0L[2, 2]
+    iota = Lam[0, 0] * Lam[1, 1] - Lam[0, 1] * Lam[1, 0]     # 1 / |R_1 x R_2|
+    if pf != 0.0:
+        _pressure_loads(pf, zf, h, iota, ga0, ga1, v, ff, qbar, m, dm)
     status = _solve_y1(kind, psi, params, g0, m, CA[0], U, y1, D0, S[0], mv, mm, mp,
                        B, LB, sc[25], sc[26][1])
     if status != OK:
@@ -546,7 +563,8 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
             y2[k] = 0.0
         if mode == MODE_ENERGY:
             return L, OK
-        _membrane_derivatives(mode, cW, g0, CA[0], D0, P, AA, Binv, grad, hess, sc)
+        _membrane_derivatives(mode, cW, g0, CA[0], D0, P, AA, Binv, grad, hess, sc,
+                              pf, zf, h, iota, ga0, ga1, U)
         return L, OK
 
     # ---- Y_a (surface derivative of the membrane condition) -------------
@@ -604,6 +622,8 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     L = (cW * W + _dot9(P, X) + cB * _dot9(A1, tmp)
          - h * (m[0] * y1[0] + m[1] * y1[1] + m[2] * y1[2])
          - cq * h ** 3 / 12.0 * (qbar[0] * y2[0] + qbar[1] * y2[1] + qbar[2] * y2[2]))
+    if pf != 0.0 and cons:
+        L += _pressure_face_area_term(pf, zf, iota, U)
     if mode == MODE_ENERGY:
         return L, OK
 
@@ -646,6 +666,8 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
             for p in range(9):
                 gA[p] += t1a[a] * tmp[p] + X2[p]
             _add_to_xi(gA, CA[0], g0, cx[3 + 3 * a + k])
+    if pf != 0.0:
+        _pressure_gradient(pf, zf, h, cq, iota, ga0, ga1, U, Lx, cx, True)
     # c_z = [[B, 0, 0], [K1, B, 0], [K2, 0, B]] (blocks of cx in z = y1, Y1, Y2)
     # lam_a = -B^{-1} dLtil/dY_a ; lam_0 = -B^{-1}(dLtil/dy1 + K1^T lam_1 + K2^T lam_2)
     z0 = 3 * Y1_BLOCK
@@ -769,6 +791,10 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
                 p = 3 * k + J
                 s += D0[k, p] * (T[p, q] + (W01[p, q] if q < NX else 0.0))
             Ly[k, q] = s
+    if pf != 0.0:
+        _pressure_hessian(pf, zf, h, cq, iota, ga0, ga1, U, lam, Zv, 9, sc[31], sc[32], hess)
+        # d2/dy2 dv of -cq (pf h^2/12) y2 . n_c
+        _add_cross_jacobian(Ly, 0, 0, 3, U[:, 0], U[:, 1], -cq * pf * h * h / 12.0 * iota)
     # minus Ly^T (2 cB B / g0)^{-1} Ly
     BLy = sc[18][0:3]            # (work, T is done) B^{-1} Ly
     f = g0 / (2.0 * cB)
@@ -909,25 +935,28 @@ def _solve_y1(kind, psi, params, g0, m, CA0, U, y1, D0, A0, mv, mm, mp, B, LB, w
 
 
 @njit(**KERNEL)
-def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc):
-    """Membrane level: L = cW W(A0) - h m.y1, envelope in y1 (multiplier 0)."""
-    Lx = sc[14]
+def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc,
+                          pf, zf, h, iota, ga0, ga1, U):
+    """Membrane level: L = cW W(A0) - h m.y1, envelope in y1 (multiplier 0);
+    a face pressure makes m depend on v (m_p, docs/pressure.md)."""
+    Lx, cx = sc[14], sc[15]
     for q in range(NXI):
         Lx[q] = 0.0
+        for k in range(3):
+            cx[k, q] = 0.0
     g = sc[10][10]
     for p in range(9):
         g[p] = cW * P[p]
     _add_to_xi(g, CA0, 1.0, Lx)
+    if pf != 0.0:
+        _pressure_gradient(pf, zf, h, 0.0, iota, ga0, ga1, U, Lx, cx, False)
     for q in range(NV):
         grad[q] = Lx[q]
     if mode < MODE_HESSIAN:
         return
     # dy1/dv = -B^{-1} dc0/dv, dc0_k/dA0 = g0 AA D0^k
-    cx = sc[15]
     tmp = sc[10][11]
     for k in range(3):
-        for q in range(NXI):
-            cx[k, q] = 0.0
         _matvec_block(AA, D0[k], k, tmp)
         _add_to_xi(tmp, CA0, g0, cx[k])
     Zv = sc[16]
@@ -943,6 +972,174 @@ def _membrane_derivatives(mode, cW, g0, CA0, D0, P, AA, Binv, grad, hess, sc):
             hess[a, b] = 0.0
     _h_j(H, Js[0], NX, sc[18])
     _add_jt(Js[0], NX, sc[18], NX, hess)
+    if pf != 0.0:
+        lam = sc[20]
+        for r in range(9):
+            lam[r] = 0.0
+        _pressure_hessian(pf, zf, h, 0.0, iota, ga0, ga1, U, lam, Zv, 3, sc[31], sc[32], hess)
+        for i in range(NV):
+            for j in range(i):
+                hess[i, j] = hess[j, i]
+
+
+# ---------------------------------------------------------------------------
+# follower pressure on a face (docs/pressure.md)
+# ---------------------------------------------------------------------------
+# With n_c = iota r_1 x r_2 (iota = 1/|R_1 x R_2|) the pressure pf on the face
+# Z = zf is, per reference area and to the order of the model,
+#   -pf [V(r) density + zf y1.n_c + (h^2/12) y2.n_c + (zf^2/2) iota y1.(Y_1 x r_2 + r_1 x Y_2)]
+# = face tractions m_p = (pf zf/h) n_c, qbar_p = (pf/h) n_c, dm_p = (pf zf/h) n_c,a
+#   that follow the deformation, plus the face-area term; V(r) is the discretization's.
+
+@njit(**KERNEL, inline="always")
+def _eps(k, i, j):
+    """Levi-Civita symbol."""
+    return 0.5 * (i - j) * (j - k) * (k - i)
+
+
+@njit(**KERNEL)
+def _cross_into(x, y, c, out, o):
+    """out[o:o+3] += c x cross y."""
+    out[o] += c * (x[1] * y[2] - x[2] * y[1])
+    out[o + 1] += c * (x[2] * y[0] - x[0] * y[2])
+    out[o + 2] += c * (x[0] * y[1] - x[1] * y[0])
+
+
+@njit(**KERNEL)
+def _add_cross_jacobian(M, row, cx_, cy, x, y, c):
+    """M[row:row+3, cx_:cx_+3] += c d(x cross y)/dx, M[row:row+3, cy:cy+3] += c d(x cross y)/dy."""
+    for k in range(3):
+        for i in range(3):
+            for j in range(3):
+                e = c * _eps(k, i, j)
+                if e != 0.0:
+                    M[row + k, cx_ + i] += e * y[j]
+                    M[row + k, cy + j] += e * x[i]
+
+
+@njit(**KERNEL)
+def _add_cross_pair(M, bx, by, w, c):
+    """Second derivatives of c w.(x cross y) between the blocks x (at bx) and y (at by)."""
+    for k in range(3):
+        for i in range(3):
+            for j in range(3):
+                e = c * _eps(k, i, j) * w[k]
+                if e != 0.0:
+                    M[bx + i, by + j] += e
+                    M[by + j, bx + i] += e
+
+
+@njit(**KERNEL)
+def _pressure_loads(pf, zf, h, iota, ga0, ga1, v, ff, qbar, m, dm):
+    """Add m_p, qbar_p, dm_p to the point's loads (v local, ff = r_1 x r_2)."""
+    cm = pf * zf / h * iota
+    for k in range(3):
+        m[k] += cm * ff[k]
+        qbar[k] += pf / h * iota * ff[k]
+        dm[0, k] -= cm * ga0 * ff[k]
+        dm[1, k] -= cm * ga1 * ff[k]
+    # n_c,a = iota (r_1a x r_2 + r_1 x r_2a) - (j_a/j) n_c; r_11, r_12, r_22 = v[6:9], v[9:12], v[12:15]
+    _cross_into(v[6:9], v[3:6], cm, dm[0], 0)
+    _cross_into(v[0:3], v[9:12], cm, dm[0], 0)
+    _cross_into(v[9:12], v[3:6], cm, dm[1], 0)
+    _cross_into(v[0:3], v[12:15], cm, dm[1], 0)
+
+
+@njit(**KERNEL)
+def _pressure_face_area_term(pf, zf, iota, U):
+    """-pf (zf^2/2) iota y1.(Y_1 x r_2 + r_1 x Y_2) (consistent level)."""
+    r1, r2, y1, Y1, Y2 = U[:, 0], U[:, 1], U[:, 5], U[:, 6], U[:, 7]
+    s = 0.0
+    for k in range(3):
+        for i in range(3):
+            for j in range(3):
+                e = _eps(k, i, j)
+                if e != 0.0:
+                    s += e * y1[k] * (Y1[i] * r2[j] + r1[i] * Y2[j])
+    return -pf * 0.5 * zf * zf * iota * s
+
+
+@njit(**KERNEL)
+def _pressure_gradient(pf, zf, h, cq, iota, ga0, ga1, U, Lx, cx, bend):
+    """Face pressure: v- and z-derivatives of -h m_p.y1 - cq h^3/12 qbar_p.y2 +
+    face-area term into Lx, and -d(m_p, dm_p)/dv into the constraint rows of cx
+    (dm_p only if bend)."""
+    r1, r2, y1, Y1, Y2, y2 = U[:, 0], U[:, 1], U[:, 5], U[:, 6], U[:, 7], U[:, 8]
+    cz = cq * pf * 0.5 * zf * zf * iota            # face-area term: -cz y1.(Y_1 x r_2 + r_1 x Y_2)
+    for k in range(3):
+        w = pf * zf * y1[k] + cq * pf * h * h / 12.0 * y2[k]   # -iota w.(r_1 x r_2)
+        for i in range(3):
+            for j in range(3):
+                e = _eps(k, i, j)
+                if e == 0.0:
+                    continue
+                Lx[i] -= iota * e * w * r2[j]          # d/dr_1
+                Lx[3 + j] -= iota * e * w * r1[i]      # d/dr_2
+                if cz != 0.0:
+                    # y1_k (Y1_i r2_j + r1_i Y2_j)
+                    Lx[i] -= cz * e * y1[k] * Y2[j]
+                    Lx[3 + j] -= cz * e * y1[k] * Y1[i]
+                    Lx[3 * Y1_BLOCK + k] -= cz * e * (Y1[i] * r2[j] + r1[i] * Y2[j])
+                    Lx[3 * Y1_BLOCK + 3 + i] -= cz * e * y1[k] * r2[j]
+                    Lx[3 * Y1_BLOCK + 6 + j] -= cz * e * y1[k] * r1[i]
+    cm = pf * zf / h * iota
+    _add_cross_jacobian(cx, 0, 0, 3, r1, r2, -cm)
+    if bend:
+        for a_ in range(2):
+            row = 3 + 3 * a_
+            ga = ga0 if a_ == 0 else ga1
+            b1a, b2a = (6, 9) if a_ == 0 else (9, 12)      # columns of r_1a, r_2a
+            _add_cross_jacobian(cx, row, b1a, 3, U[:, 2 + a_], r2, -cm)
+            _add_cross_jacobian(cx, row, 0, b2a, r1, U[:, 3 + a_], -cm)
+            _add_cross_jacobian(cx, row, 0, 3, r1, r2, cm * ga)
+
+
+@njit(**KERNEL)
+def _pressure_hessian(pf, zf, h, cq, iota, ga0, ga1, U, lam, Zv, nz, M, T, hess):
+    """Face pressure: the Hessian of (-h m_p.y1 + face-area term + lam.c_p) in
+    (v, y1, Y1, Y2) (c_p = -(m_p, dm_p)), mapped by [I; Zv[:nz]] and added to
+    the upper triangle of hess.  The y2 part is the caller's (condensed)."""
+    n = NV + 9
+    for p in range(n):
+        for q in range(n):
+            M[p, q] = 0.0
+    r1, r2, y1, Y1, Y2 = U[:, 0], U[:, 1], U[:, 5], U[:, 6], U[:, 7]
+    z = NV                                   # y1 at z, Y1 at z + 3, Y2 at z + 6
+    cm = pf * zf / h * iota
+    w = T[0, 0:3]                            # (scratch) -iota (pf zf y1 + cq pf h^2/12 y2) - cm lam0 + ...
+    for k in range(3):
+        w[k] = (-iota * (pf * zf * y1[k] + cq * pf * h * h / 12.0 * U[k, 8]) - cm * lam[k]
+                + cm * (ga0 * lam[3 + k] + ga1 * lam[6 + k]))
+    _add_cross_pair(M, 0, 3, w, 1.0)                     # r_1 - r_2
+    _add_cross_pair(M, z, 0, r2, -iota * pf * zf)        # y1 - r_1  (y1.(r_1 x r_2) = r_2.(y1 x r_1))
+    _add_cross_pair(M, 3, z, r1, -iota * pf * zf)        # r_2 - y1  (= r_1.(r_2 x y1))
+    for a_ in range(2):
+        la = lam[3 + 3 * a_:6 + 3 * a_]
+        b1a, b2a = (6, 9) if a_ == 0 else (9, 12)
+        _add_cross_pair(M, b1a, 3, la, -cm)              # r_1a - r_2
+        _add_cross_pair(M, 0, b2a, la, -cm)              # r_1 - r_2a
+    cz = cq * pf * 0.5 * zf * zf * iota
+    if cz != 0.0:
+        # -cz [y1.(Y1 x r_2) + y1.(r_1 x Y2)]
+        _add_cross_pair(M, z + 3, 3, y1, -cz)            # Y1 - r_2
+        _add_cross_pair(M, z, z + 3, r2, -cz)            # y1 - Y1
+        _add_cross_pair(M, 3, z, Y1, -cz)                # r_2 - y1
+        _add_cross_pair(M, 0, z + 6, y1, -cz)            # r_1 - Y2
+        _add_cross_pair(M, z, 0, Y2, -cz)                # y1 - r_1
+        _add_cross_pair(M, z + 6, z, r1, -cz)            # Y2 - y1
+    # [I; Zv]^T M [I; Zv]: T = M[:, :NV] + M[:, z:z+nz] Zv[:nz]
+    for p in range(n):
+        for q in range(NV):
+            s = M[p, q]
+            for r in range(nz):
+                s += M[p, z + r] * Zv[r, q]
+            T[p, q] = s
+    for i in range(NV):
+        for j in range(i, NV):
+            s = T[i, j]
+            for r in range(nz):
+                s += Zv[r, i] * T[z + r, j]
+            hess[i, j] += s
 
 
 @njit(cache=True, parallel=True)
