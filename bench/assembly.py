@@ -43,7 +43,7 @@ def scene(n_target, level="consistent"):
     s._setup()
     s.set_parameter(1.0)
     rng = np.random.default_rng(0)
-    x = s.free_state() + 0.01 * rng.standard_normal(len(s.free))
+    x = s.free_state() + 1e-3 * rng.standard_normal(len(s.free))    # admissible (F0 + Z F1 does not fold)
     s.evaluate(x, 2)                 # warm starts of y1
     return s, x
 

@@ -31,7 +31,7 @@ from .materials import Law
 from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id, pressure_face
 from .solve import EvaluationError, Solvable
-from .strain_gradient import DKTStrainGradient, dkt_active_elements
+from .strain_gradient import DKTStrainGradient, coefficient, dkt_active_elements
 from .validity import dkt_validity
 
 __all__ = ["Shell", "Result"]
@@ -98,6 +98,7 @@ class Shell(Solvable):
         # below on fine meshes (strain_gradient.py, docs/validity.md)
         active = dkt_active_elements(mesh, self.h)
         self.strain_gradient = (None if level == "membrane" or not active.any()
+                                or coefficient(material, self.h) == 0.0      # nu = 0: R = 0
                                 else DKTStrainGradient(mesh, material, self.h, active))
         n = mesh.n_nodes
         self.X = mesh.vertices

@@ -78,7 +78,8 @@ class LineShell(Solvable):
         self._build_points()
         # the h^5 strain-gradient term that keeps the bending levels bounded
         # below on fine meshes (strain_gradient.py, docs/validity.md)
-        self.strain_gradient = None if level == "membrane" else strain_gradient.LineStrainGradient(self)
+        self.strain_gradient = (None if level == "membrane" or strain_gradient.coefficient(material, self.h) == 0.0
+                                else strain_gradient.LineStrainGradient(self))       # nu = 0: R = 0
 
     # ----------------------------------------------------------------- geometry
     def _kinematics(self, kin):
