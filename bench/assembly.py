@@ -43,7 +43,9 @@ def scene(n_target, level="consistent"):
     s._setup()
     s.set_parameter(1.0)
     rng = np.random.default_rng(0)
-    x = s.free_state() + 1e-3 * rng.standard_normal(len(s.free))    # admissible (F0 + Z F1 does not fold)
+    # a generic state, admissible (F0 + Z F1 does not fold: perturbation 1 % of the element size)
+    size = np.linalg.norm(mesh.vertices[mesh.edges[:, 1]] - mesh.vertices[mesh.edges[:, 0]], axis=1).mean()
+    x = s.free_state() + 0.01 * size * rng.standard_normal(len(s.free))
     s.evaluate(x, 2)                 # warm starts of y1
     return s, x
 
