@@ -100,14 +100,7 @@ def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wt
     n0, n1, n2 = tri[e, 0], tri[e, 1], tri[e, 2]
     area = element_chart(Xe, Te, Q, gl, et, el)
     Le = 0.0
-    if mode >= 1:
-        for k in range(9):
-            for c in range(3):
-                ge[k, c] = 0.0
-    if mode >= 2:
-        for p in range(27):
-            for q in range(27):
-                ke[p, q] = 0.0
+    zero_element(mode, ge, ke)
     if regge:
         beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
         data_maps(Q, et, el, WC)
@@ -360,6 +353,19 @@ def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, w
                                             Y1, Y2, ge, ke, sc, wk, rw)
                 if status[e] == OK:
                     scatter_element(e, mode, tri, ge, ke, emap, G, data)
+
+
+@njit(**KERNEL)
+def zero_element(mode, ge, ke):
+    """Clear the element gradient ge (9, 3) and Hessian ke (27, 27) the mode fills."""
+    if mode >= 1:
+        for k in range(9):
+            for c in range(3):
+                ge[k, c] = 0.0
+    if mode >= 2:
+        for p in range(27):
+            for q in range(27):
+                ke[p, q] = 0.0
 
 
 @njit(**KERNEL)

@@ -31,7 +31,7 @@ from numba import njit, prange
 
 from ..discretize.dkt import element_chart, gather_element, point_map
 from . import KERNEL
-from .assembly import scatter_element
+from .assembly import scatter_element, zero_element
 
 NP1 = 9           # blocks P0 (3) and P1 (6): first covariant derivatives
 NP2 = 18          # and P2 (9): second
@@ -361,14 +361,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
     L, chi, k2, val, dval, Mw = wk[35], wk[40], wk[39], wk[41], wk[42], wk[43]
     area = _load_element(e, tri, X, T, U, wk)
     _third_derivative_map(wk)
-    if mode >= 1:
-        for k in range(9):
-            for j in range(3):
-                ge[k, j] = 0.0
-    if mode >= 2:
-        for p in range(27):
-            for q in range(27):
-                ke[p, q] = 0.0
+    zero_element(mode, ge, ke)
     Re = 0.0
     for iq in range(bary.shape[0]):
         _blocks(e, bary[iq], tri, G0n, mode, True, wk)
