@@ -1,7 +1,7 @@
 """The machine a benchmark ran on, recorded in every bench/results file: CPU
 model, cores (and those this process may use), Python and library versions,
-Numba's threading layer and thread count, the thread variables of the
-environment and the load average (a shared machine shows up there)."""
+how the kernels run in parallel and on how many threads, the thread variables
+of the environment and the load average (a shared machine shows up there)."""
 
 import os
 import platform
@@ -32,16 +32,14 @@ def version(dist):
 
 
 def machine_info(extra_libraries=()):
-    """A dict for the 'machine' entry of a results file.  Call it after the
-    kernels ran once (Numba's threading layer is known only then)."""
+    """A dict for the 'machine' entry of a results file."""
     import numba
-    try:
-        layer = numba.threading_layer()
-    except ValueError:                   # no parallel region has run yet
-        layer = None
     return {"cpu": cpu_model(), "cores": os.cpu_count(), "cores_available": len(os.sched_getaffinity(0)),
             "python": platform.python_version(),
             "libraries": {d: version(d) for d in (*LIBRARIES, *extra_libraries)},
-            "numba_threading_layer": layer, "numba_threads": numba.get_num_threads(),
+            # the assembly kernels are nogil Numba functions run on Python threads
+            # (shellritz/kernels/parallel.py), numba.get_num_threads() of them
+            "threading": "python threads (shellritz.kernels.parallel)",
+            "numba_threads": numba.get_num_threads(),
             "environment": {v: os.environ.get(v) for v in THREAD_VARIABLES},
             "load_average": list(os.getloadavg())}

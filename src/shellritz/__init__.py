@@ -2,9 +2,9 @@
 
 import os
 
-# OpenMP threads (Numba's parallel assembly, MKL's PARDISO) sleep when idle
-# instead of spinning: spinning threads of one runtime slow the other's, and
-# any other load of the machine, by factors of 2-8 (README "Threads").  Set
+# OpenMP threads (MKL's PARDISO) sleep when idle instead of spinning: spinning
+# threads slow the assembly's threads that run next, and any other load of the
+# machine, by factors of 2-8 (README "Threads").  Set
 # OMP_WAIT_POLICY before importing shellritz to choose otherwise.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 

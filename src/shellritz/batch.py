@@ -63,7 +63,7 @@ def prepare_kernels():
     """Compile (first run) or load (cached) every Numba kernel a DKT solve and
     its output use, on a 4-triangle problem.  Returns (seconds, compiled)."""
     from . import NeoHookean, Shell, shapes
-    from .kernels.assembly import assemble_dkt
+    from .kernels.assembly import assemble_elements
     from .post import _fields, fields
     t0 = time.perf_counter()
     mesh = shapes.rectangle(2, 1)
@@ -71,7 +71,7 @@ def prepare_kernels():
     shell.set_growth(G0=np.diag([1.01, 1.0, 1.0]), G1=np.diag([0.1, 0.0, 0.0]))
     shell.clamp(mesh.nodes_on_plane("x", 0.0))
     fields(shell.solve(steps=1, verbose=False))
-    compiled = bool(sum(assemble_dkt.stats.cache_misses.values())
+    compiled = bool(sum(assemble_elements.stats.cache_misses.values())
                     + sum(_fields.stats.cache_misses.values()))
     return time.perf_counter() - t0, compiled
 

@@ -20,7 +20,6 @@ The continuation parameter t in [0, 1] ramps the growth
 import warnings
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -585,7 +584,7 @@ class Shell(Solvable):
                      self.bary, self.wts, self._Gt0, self._Gt1, self._qp_t, self._qm_t, has_load,
                      0.0 if face is None else self._p_t, 0.0 if face is None else face,
                      Y1, self.Y2, self._order, self._colour_start, self._emap,
-                     numba.get_num_threads(), self._Le, self._G, data, self._status)
+                     self._Le, self._G, data, self._status)
         if self._status.any():
             e = int(np.argmax(self._status != 0))
             raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "

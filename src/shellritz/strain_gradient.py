@@ -33,7 +33,6 @@ interior-penalty form of the same seminorm.  The triangle version is in
 kernels/strain_gradient_dkt.py.
 """
 
-import numba
 import numpy as np
 
 from .discretize import line
@@ -360,8 +359,7 @@ class DKTStrainGradient:
         tri, X, T, G0 = shell.mesh.triangles, shell.X, shell.frames, shell._Gt0
         Re = self.per_element
         add_dkt_strain_gradient(mode, self.C, self.active, tri, X, T, U, G0, shell.bary, shell.wts,
-                                shell._order, shell._colour_start, shell._emap,
-                                numba.get_num_threads(), Re, Le, G, data)
+                                shell._order, shell._colour_start, shell._emap, Re, Le, G, data)
         add_dkt_edge_strain_gradient(mode, self.C, tri, X, T, U, G0, self.edge_tri, self.edge_lam,
                                      self.edge_w, self.edge_frame, self.edge_node, self.edge_local,
                                      self.edge_oo, self.edge_order, self.edge_colour_start,

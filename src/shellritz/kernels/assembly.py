@@ -2,8 +2,9 @@
 
 The elements are coloured once per mesh so that two elements of one colour
 share no node; colour by colour, the elements of a colour run in parallel
-(prange over chunks, one scratch per chunk) and add their gradient and
-Hessian straight into the global arrays without races: no per-element
+(chunks on threads, kernels/parallel.py, one scratch per chunk) and add
+their gradient and Hessian straight into the global arrays without races:
+no per-element
 matrices are stored.  The Hessian is the lower triangle of the free DOFs in a
 CSR pattern built once per mesh and constraint set; ``emap[e, k]`` is the
 data position of the packed lower-triangle entry k = p (p + 1) / 2 + q
@@ -13,7 +14,7 @@ s = 0 position, 1 and 2 the derivatives along T_n1, T_n2; local DOF
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..discretize.dkt import apply_map, element_chart, gather_element, point_map
 from ..discretize.regge import (BLEND, N_DATA, N_JET, N_SLOTS, N_W, add_data_hessian,
@@ -21,6 +22,7 @@ from ..discretize.regge import (BLEND, N_DATA, N_JET, N_SLOTS, N_W, add_data_hes
                                 metric_coefficients, tangent_curvature, tangent_map,
                                 tangent_vectors)
 from . import KERNEL
+from .parallel import run_chunks
 from .point import OK, STATUS_TEXT, _reference_geometry, new_scratch, point_kernel
 
 ERR_METRIC = 100        # element-level status (the point kernel's are below)
@@ -316,17 +318,15 @@ def color_elements(tri, n_nodes):
     return colour
 
 
-@njit(cache=True, parallel=True)
 def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n,
-                 qp, qm, has_load, pf, zf, Y1, Y2, order, colour_start, emap, n_threads, Le, G,
-                 data, status):
+                 qp, qm, has_load, pf, zf, Y1, Y2, order, colour_start, emap, Le, G, data,
+                 status):
     """Element energies Le (E); for mode >= 1 the gradient G (n, 3, 3), for
     mode >= 2 the Hessian values data (positions emap), both overwritten.
 
     order: the elements sorted by colour, colour c being
-    order[colour_start[c]:colour_start[c + 1]] (see color_elements);
-    n_threads: numba.get_num_threads() of the caller (a colour runs as
-    4 n_threads chunks).
+    order[colour_start[c]:colour_start[c + 1]] (see color_elements); the
+    elements of a colour run in parallel (kernels/parallel.py).
     regge: the assumed membrane metric of discretize/regge.py (else the DKT one).
     pf, zf: the points' part of a follower pressure pf on the face Z = zf
     (point_kernel; the volume of the positions is the caller's).
@@ -337,22 +337,29 @@ def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, w
     if mode >= 2:
         data[:] = 0.0
     for c in range(colour_start.shape[0] - 1):
-        first = colour_start[c]
-        n = colour_start[c + 1] - first
-        nchunk = min(n, 4 * n_threads)
-        for ch in prange(nchunk):
-            sc = new_scratch()
-            wk = _element_work()
-            rw = _regge_work()
-            ge = np.zeros((9, 3))
-            ke = np.zeros((27, 27))
-            for j in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
-                e = order[j]
-                Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, regge, tri, X,
-                                            T, U, bary, wts, G0n, G1n, qp, qm, has_load, pf, zf,
-                                            Y1, Y2, ge, ke, sc, wk, rw)
-                if status[e] == OK:
-                    scatter_element(e, mode, tri, ge, ke, emap, G, data)
+        run_chunks(assemble_elements, colour_start[c], colour_start[c + 1], mode, level, kind,
+                   psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n, qp, qm, has_load,
+                   pf, zf, Y1, Y2, order, emap, Le, G, data, status)
+
+
+@njit(cache=True, nogil=True)
+def assemble_elements(lo, hi, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts,
+                      G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, emap, Le, G, data,
+                      status):
+    """The elements order[lo:hi] (no two sharing a node) into Le, G, data,
+    status (see assemble_dkt)."""
+    sc = new_scratch()
+    wk = _element_work()
+    rw = _regge_work()
+    ge = np.zeros((9, 3))
+    ke = np.zeros((27, 27))
+    for j in range(lo, hi):
+        e = order[j]
+        Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U,
+                                    bary, wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, ge,
+                                    ke, sc, wk, rw)
+        if status[e] == OK:
+            scatter_element(e, mode, tri, ge, ke, emap, G, data)
 
 
 @njit(**KERNEL)

@@ -413,13 +413,13 @@ def mat_prepare(kind, psi_fn, params, A, mv, mm, mp):
         for a in range(nk):
             s += mp[S_P1 + a] * mv[V_G + a, p]
         P[p] = s
-    mat_combination(mv, mm, mp, 1.0, A9, False, mv[0:0], mv[0:0], mp[0:0], AA)
+    mat_combination(mv, mm, mp, 1.0, A9[0:0], mv[0:0], mv[0:0], mp[0:0], AA)
     return 0
 
 
 @njit(**KERNEL)
-def mat_combination(mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
-    """out = cAA AA + D3W[., ., c3] (if with_c3) + sum_p wts[p] D4W[., ., C[p], Dd[p]].
+def mat_combination(mv, mm, mp, cAA, c3, C, Dd, wts, out):
+    """out = cAA AA + D3W[., ., c3] (if c3 is not empty) + sum_p wts[p] D4W[., ., C[p], Dd[p]].
 
     One pass of Faa di Bruno over the active invariants: with the invariant
     forms g_a = D I_a, Q_a = D2 I_a, R_a(c) = D3 I_a[., ., c],
@@ -445,15 +445,17 @@ def mat_combination(mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
             for q in range(9):
                 out[p, q] = cAA * mm[M_AA, p, q]
         return
+    # nk as a literal: one specialization of _combination per number of invariants
     if mp[S_NK] == 3:
-        _combination(3, mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out)
+        _combination(3, mv, mm, mp, cAA, c3, C, Dd, wts, out)
     else:
-        _combination(2, mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out)
+        _combination(2, mv, mm, mp, cAA, c3, C, Dd, wts, out)
 
 
-@njit(**KERNEL, inline="always")
-def _combination(nk, mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
+@njit(**KERNEL)
+def _combination(nk, mv, mm, mp, cAA, c3, C, Dd, wts, out):
     """mat_combination for nk active invariants (a compile-time constant)."""
+    with_c3 = c3.shape[0] > 0
     g = mv[V_G:V_G + 3]
     qc, qd, rcd = mv[V_QC:V_QC + 3], mv[V_QD:V_QD + 3], mv[V_RCD:V_RCD + 3]
     u, Rdir = mv[V_U:V_U + 3], mv[V_RD:V_RD + 3]
@@ -558,7 +560,7 @@ def _combination(nk, mv, mm, mp, cAA, c3, with_c3, C, Dd, wts, out):
 @njit(**KERNEL)
 def mat_d3(mv, mm, mp, c, out):
     """out = D3W[., ., c] (9x9). Requires mat_prepare on the same A."""
-    mat_combination(mv, mm, mp, 0.0, c, True, mv[0:0], mv[0:0], mp[0:0], out)
+    mat_combination(mv, mm, mp, 0.0, c, mv[0:0], mv[0:0], mp[0:0], out)
 
 
 @njit(**KERNEL)
@@ -568,7 +570,7 @@ def mat_d4(mv, mm, mp, c, d, coef, out):
         mv[V_PC, p] = c[p]
         mv[V_PD, p] = d[p]
     mp[S_WT] = coef
-    mat_combination(mv, mm, mp, 0.0, c, False, mv[V_PC:V_PC + 1], mv[V_PD:V_PD + 1],
+    mat_combination(mv, mm, mp, 0.0, c[0:0], mv[V_PC:V_PC + 1], mv[V_PD:V_PD + 1],
                     mp[S_WT:S_WT + 1], out)
 
 
@@ -581,13 +583,13 @@ def mat_d3_vec(mv, mm, mp, c, d, out):
         out[p] = 0.0
     if mp[S_KIND] == KIND_LINEAR:
         return
-    if mp[S_NK] == 3:
+    if mp[S_NK] == 3:          # nk as a literal: one specialization per number of invariants
         _d3_vec(3, mv, mm, mp, c, d, out)
     else:
         _d3_vec(2, mv, mm, mp, c, d, out)
 
 
-@njit(**KERNEL, inline="always")
+@njit(**KERNEL)
 def _d3_vec(nk, mv, mm, mp, c, d, out):
     """mat_d3_vec for nk active invariants (a compile-time constant)."""
     g = mv[V_G:V_G + 3]

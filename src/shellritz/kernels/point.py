@@ -41,9 +41,10 @@ The load term -h qbar.r is linear in r and left to the discretization.
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from . import KERNEL
+from .parallel import run_chunks
 from .material import (M_AA, S_W, V_P, mat_combination, mat_d3, mat_d3_vec,
                        mat_prepare, new_state)
 from .small import chol3, chol3_inverse, chol3_solve, cross, det3, inv3, mv3
@@ -732,7 +733,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     pw[0] = cB
     pw[1] = g0
     pw[2] = g0
-    mat_combination(mv, mm, mp, cW, Xt, True, pc, pd, pw, H00)
+    mat_combination(mv, mm, mp, cW, Xt, pc, pd, pw, H00)
     mat_d3(mv, mm, mp, A1, H01)
     for a in range(2):
         mat_d3(mv, mm, mp, pd[1 + a], H0a[a])
@@ -1142,18 +1143,23 @@ def _pressure_hessian(pf, zf, h, cq, iota, ga0, ga1, U, lam, Zv, nz, M, T, hess)
             hess[i, j] += s
 
 
-@njit(cache=True, parallel=True)
 def evaluate_points(mode, level, kind, psi, params, h, V, REF, G0, G1, dG0, QBAR, M, DM,
                     Y1, Y2, L, GRAD, HESS, STATUS):
-    """point_kernel over N independent points (rows of the arrays), in parallel.
+    """point_kernel over N independent points (rows of the arrays), in
+    parallel chunks (kernels/parallel.py).
 
     Y1 is the warm start (rows of zeros: none) and receives the directors.
     """
-    n = V.shape[0]
-    nchunk = min(n, 256)      # independent of the thread count
-    for c in prange(nchunk):
-        sc = new_scratch()
-        for i in range(c * n // nchunk, (c + 1) * n // nchunk):
-            L[i], STATUS[i] = point_kernel(mode, level, kind, psi, params, h, V[i], REF[i],
-                                           G0[i], G1[i], dG0[i], QBAR[i], M[i], DM[i],
-                                           Y1[i], Y2[i], GRAD[i], HESS[i], sc)
+    run_chunks(_evaluate_point_range, 0, V.shape[0], mode, level, kind, psi, params, h, V, REF,
+               G0, G1, dG0, QBAR, M, DM, Y1, Y2, L, GRAD, HESS, STATUS, min_chunk=64)
+
+
+@njit(cache=True, nogil=True)
+def _evaluate_point_range(lo, hi, mode, level, kind, psi, params, h, V, REF, G0, G1, dG0, QBAR,
+                          M, DM, Y1, Y2, L, GRAD, HESS, STATUS):
+    """The points lo .. hi - 1 of evaluate_points."""
+    sc = new_scratch()
+    for i in range(lo, hi):
+        L[i], STATUS[i] = point_kernel(mode, level, kind, psi, params, h, V[i], REF[i],
+                                       G0[i], G1[i], dG0[i], QBAR[i], M[i], DM[i],
+                                       Y1[i], Y2[i], GRAD[i], HESS[i], sc)

@@ -27,10 +27,11 @@ d2P/dX2 = 2 M (x) I3: energy, gradient and Hessian are exact.
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..discretize.dkt import element_chart, gather_element, point_map
 from . import KERNEL
+from .parallel import run_chunks
 from .assembly import scatter_element, zero_element
 
 NP1 = 9           # blocks P0 (3) and P1 (6): first covariant derivatives
@@ -407,30 +408,33 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
     return Re
 
 
-@njit(cache=True, parallel=True)
 def add_dkt_strain_gradient(mode, C, active, tri, X, T, U, G0n, bary, wts, order, colour_start,
-                            emap, n_threads, Re, Le, G, data):
+                            emap, Re, Le, G, data):
     """R_e of every active element into Re (overwritten; 0 elsewhere) and added to the element
     energies Le; for mode >= 1 the gradient added to G (n, 3, 3), for mode >= 2
     the Hessian to data (the DKT assembly's CSR values, positions emap).
     Local DOF 9 i + 3 s + c of the element's node i is U[node, s, c], as in
-    kernels/assembly.py; colours as there (no race)."""
+    kernels/assembly.py; colours as there (no race), in parallel chunks."""
     for c in range(colour_start.shape[0] - 1):
-        first = colour_start[c]
-        n = colour_start[c + 1] - first
-        nchunk = min(n, 4 * n_threads)
-        for ch in prange(nchunk):
-            wk = _work()
-            ge = np.zeros((9, 3))
-            ke = np.zeros((27, 27))
-            for j in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
-                e = order[j]
-                if not active[e]:
-                    Re[e] = 0.0
-                    continue
-                Re[e] = element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk)
-                Le[e] += Re[e]
-                scatter_element(e, mode, tri, ge, ke, emap, G, data)
+        run_chunks(_add_elements, colour_start[c], colour_start[c + 1], mode, C, active, tri, X,
+                   T, U, G0n, bary, wts, order, emap, Re, Le, G, data)
+
+
+@njit(cache=True, nogil=True)
+def _add_elements(lo, hi, mode, C, active, tri, X, T, U, G0n, bary, wts, order, emap, Re, Le, G,
+                  data):
+    """The elements order[lo:hi] of add_dkt_strain_gradient."""
+    wk = _work()
+    ge = np.zeros((9, 3))
+    ke = np.zeros((27, 27))
+    for j in range(lo, hi):
+        e = order[j]
+        if not active[e]:
+            Re[e] = 0.0
+            continue
+        Re[e] = element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk)
+        Le[e] += Re[e]
+        scatter_element(e, mode, tri, ge, ke, emap, G, data)
 
 
 # ---------------------------------------------------------------------------
@@ -539,7 +543,6 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
     return RE
 
 
-@njit(cache=True, parallel=True)
 def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w,
                                  edge_frame, edge_node, edge_local, edge_oo, order, colour_start,
                                  emap, RE, G, data):
@@ -547,42 +550,47 @@ def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, G0n, edge_tri, edge_lam,
     edge_local[j, A, s]: local index of edge node A in the triangle of side s
     (-1: not in it); edge_oo[j, a, b]: data position of DOF a of the first
     side's opposite vertex and DOF b of the second's (-1: fixed).  Edges are
-    coloured (no shared node within a colour)."""
+    coloured (no shared node within a colour), in parallel chunks."""
     for c in range(colour_start.shape[0] - 1):
-        first = colour_start[c]
-        n = colour_start[c + 1] - first
-        nchunk = min(n, 64)
-        for ch in prange(nchunk):
-            ew = _edge_work()
-            for jo in range(first + ch * n // nchunk, first + (ch + 1) * n // nchunk):
-                j = order[jo]
-                RE[j] = edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam,
-                                             edge_w, edge_frame, edge_node, ew)
-                if mode >= 1:
-                    gs = ew[4]
+        run_chunks(_add_edges, colour_start[c], colour_start[c + 1], mode, C, tri, X, T, U, G0n,
+                   edge_tri, edge_lam, edge_w, edge_frame, edge_node, edge_local, edge_oo, order,
+                   emap, RE, G, data)
+
+
+@njit(cache=True, nogil=True)
+def _add_edges(lo, hi, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w, edge_frame,
+               edge_node, edge_local, edge_oo, order, emap, RE, G, data):
+    """The edges order[lo:hi] of add_dkt_edge_strain_gradient."""
+    ew = _edge_work()
+    for jo in range(lo, hi):
+        j = order[jo]
+        RE[j] = edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam,
+                                     edge_w, edge_frame, edge_node, ew)
+        if mode >= 1:
+            gs = ew[4]
+            for s in range(2):
+                for i in range(3):
+                    nd = tri[edge_tri[j, s], i]
+                    for k in range(3):
+                        for cc in range(3):
+                            G[nd, k, cc] += gs[s, 3 * i + k, cc]
+        if mode >= 2:
+            Hn = ew[3]
+            for P1 in range(36):
+                A, a = P1 // 9, P1 % 9
+                for P2 in range(P1 + 1):
+                    B, b = P2 // 9, P2 % 9
+                    found = False
+                    pos = -1
                     for s in range(2):
-                        for i in range(3):
-                            nd = tri[edge_tri[j, s], i]
-                            for k in range(3):
-                                for cc in range(3):
-                                    G[nd, k, cc] += gs[s, 3 * i + k, cc]
-                if mode >= 2:
-                    Hn = ew[3]
-                    for P1 in range(36):
-                        A, a = P1 // 9, P1 % 9
-                        for P2 in range(P1 + 1):
-                            B, b = P2 // 9, P2 % 9
-                            found = False
-                            pos = -1
-                            for s in range(2):
-                                la, lb = edge_local[j, A, s], edge_local[j, B, s]
-                                if not found and la >= 0 and lb >= 0:
-                                    p, q = 9 * la + a, 9 * lb + b
-                                    if p < q:
-                                        p, q = q, p
-                                    pos = emap[edge_tri[j, s], p * (p + 1) // 2 + q]
-                                    found = True
-                            if not found:      # the two opposite vertices (A = 3 > B)
-                                pos = edge_oo[j, b, a]
-                            if pos >= 0:
-                                data[pos] += Hn[P1, P2]
+                        la, lb = edge_local[j, A, s], edge_local[j, B, s]
+                        if not found and la >= 0 and lb >= 0:
+                            p, q = 9 * la + a, 9 * lb + b
+                            if p < q:
+                                p, q = q, p
+                            pos = emap[edge_tri[j, s], p * (p + 1) // 2 + q]
+                            found = True
+                    if not found:      # the two opposite vertices (A = 3 > B)
+                        pos = edge_oo[j, b, a]
+                    if pos >= 0:
+                        data[pos] += Hn[P1, P2]
