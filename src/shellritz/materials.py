@@ -38,6 +38,7 @@ to generate it from a SymPy expression).  The engine compiles once for all laws
 recompilation of the shell kernels.
 """
 
+import functools
 import math
 
 import numba as nb
@@ -127,10 +128,16 @@ class InvariantLaw(Law):
 
 
 # ---------------------------------------------------------------------------
-# built-in psi callbacks
+# built-in psi callbacks: plain functions made Numba cfuncs on first use of
+# their law (each compiled cfunc costs ~1 s on a fresh install, so a scene
+# compiles only the laws it uses)
 # ---------------------------------------------------------------------------
 
-@nb.cfunc(PSI_SIGNATURE, cache=True)
+@functools.cache
+def _cfunc(psi):
+    return nb.cfunc(PSI_SIGNATURE, cache=True)(psi)
+
+
 def _psi_neo_hookean(I1, I2, J, par, out):
     C = par[0]
     D = par[1]
@@ -145,7 +152,6 @@ def _psi_neo_hookean(I1, I2, J, par, out):
     out[34] = 6.0 * C / J ** 4                # d4/dJ4
 
 
-@nb.cfunc(PSI_SIGNATURE, cache=True)
 def _psi_svk(I1, I2, J, par, out):
     lam = par[0]
     mu = par[1]
@@ -158,7 +164,6 @@ def _psi_svk(I1, I2, J, par, out):
     out[4] = 0.5 * mu + 0.25 * lam
 
 
-@nb.cfunc(PSI_SIGNATURE, cache=True)
 def _psi_zero(I1, I2, J, par, out):
     for n in range(35):
         out[n] = 0.0
@@ -246,7 +251,6 @@ def _cubic_stretch_psi(I1, I2, J, nu, out):
     out[0] += nu
 
 
-@nb.cfunc(PSI_SIGNATURE, cache=True)
 def _psi_cubic_stretch(I1, I2, J, par, out):
     res = np.zeros(35)
     _cubic_stretch_psi(I1, I2, J, par[0], res)
@@ -348,7 +352,6 @@ def _power_law_psi(I1, J, mu, n, eps0, K, out):
     out[34] += K * (11.0 - 6.0 * L) / J ** 4
 
 
-@nb.cfunc(PSI_SIGNATURE, cache=True)
 def _psi_power_law(I1, I2, J, par, out):
     res = np.zeros(35)
     _power_law_psi(I1, J, par[0], par[1], par[2], par[3], res)
@@ -382,7 +385,7 @@ class NeoHookean(Law):
         if D <= -2.0 * C / 3.0:
             raise ValueError(f"NeoHookean: D={D!r} gives a non-positive bulk modulus (need D > -2C/3)")
         self.C, self.D = float(C), float(D)
-        super().__init__((C, D), _psi_neo_hookean)
+        super().__init__((C, D), _cfunc(_psi_neo_hookean))
 
     @property
     def nu(self):
@@ -398,7 +401,7 @@ class CubicStretch(Law):
         _check_finite("CubicStretch", nu=nu)
         if nu <= 0:
             raise ValueError(f"CubicStretch: nu={nu!r} must be > 0")
-        super().__init__((nu,), _psi_cubic_stretch)
+        super().__init__((nu,), _cfunc(_psi_cubic_stretch))
 
 
 def _lame(name, lam, mu):
@@ -424,7 +427,7 @@ class StVenantKirchhoff(Law):
 
     def __init__(self, lam, mu):
         _lame("StVenantKirchhoff", lam, mu)
-        super().__init__((lam, mu), _psi_svk)
+        super().__init__((lam, mu), _cfunc(_psi_svk))
 
     @classmethod
     def from_young(cls, E, nu):
@@ -439,7 +442,7 @@ class LinearIsotropic(Law):
 
     def __init__(self, lam, mu):
         _lame("LinearIsotropic", lam, mu)
-        super().__init__((lam, mu), _psi_zero)
+        super().__init__((lam, mu), _cfunc(_psi_zero))
 
     @classmethod
     def from_young(cls, E, nu):
@@ -489,7 +492,7 @@ class PowerLawHardening(Law):
         if K <= 0:
             raise ValueError(f"PowerLawHardening: bulk modulus K={K!r} must be > 0")
         self.mu, self.n, self.eps0, self.K = float(mu), float(n), float(eps0), float(K)
-        super().__init__((mu, n, eps0, K), _psi_power_law)
+        super().__init__((mu, n, eps0, K), _cfunc(_psi_power_law))
 
     @property
     def nu(self):

@@ -294,7 +294,8 @@ def match_reference(alpha, Dref, R):
 # forward-mode jets (value, gradient, Hessian) in the N_JET variables
 # ---------------------------------------------------------------------------
 
-# order: 0 values, 1 and gradients, 2 and Hessians
+# order: 0 values, 1 and gradients, 2 and Hessians.  Inlined: called with literal
+# slot numbers, each call would otherwise compile a specialization of its own.
 
 @njit(**KERNEL, inline="always")
 def _jet_zero(jv, jg, jh, o, order):
@@ -308,7 +309,7 @@ def _jet_zero(jv, jg, jh, o, order):
                 jh[o, a, b] = 0.0
 
 
-@njit(**KERNEL)
+@njit(**KERNEL, inline="always")
 def _jet_dot(x, ia, ib, jv, jg, jh, o, order):
     """o = x[ia:ia+3] . x[ib:ib+3] for variable blocks of x."""
     _jet_zero(jv, jg, jh, o, order)
@@ -322,7 +323,7 @@ def _jet_dot(x, ia, ib, jv, jg, jh, o, order):
             jh[o, ib + i, ia + i] += 1.0
 
 
-@njit(**KERNEL)
+@njit(**KERNEL, inline="always")
 def _jet_axpy(a, x, b, y, jv, jg, jh, o, order):
     """o = a x + b y (slots x, y; a, b numbers)."""
     jv[o] = a * jv[x] + b * jv[y]
@@ -335,7 +336,7 @@ def _jet_axpy(a, x, b, y, jv, jg, jh, o, order):
                 jh[o, p, q] = a * jh[x, p, q] + b * jh[y, p, q]
 
 
-@njit(**KERNEL)
+@njit(**KERNEL, inline="always")
 def _jet_mul(x, y, jv, jg, jh, o, order):
     vx, vy = jv[x], jv[y]
     jv[o] = vx * vy
@@ -349,7 +350,7 @@ def _jet_mul(x, y, jv, jg, jh, o, order):
                                + jg[x, p] * jg[y, q] + jg[y, p] * jg[x, q])
 
 
-@njit(**KERNEL)
+@njit(**KERNEL, inline="always")
 def _jet_unary(x, f0, f1, f2, jv, jg, jh, o, order):
     """o = f(x) with f(x) = f0, f'(x) = f1, f''(x) = f2."""
     jv[o] = f0
@@ -362,13 +363,13 @@ def _jet_unary(x, f0, f1, f2, jv, jg, jh, o, order):
                 jh[o, p, q] = f1 * jh[x, p, q] + f2 * jg[x, p] * jg[x, q]
 
 
-@njit(**KERNEL)
+@njit(**KERNEL, inline="always")
 def _jet_sqrt(x, jv, jg, jh, o, order):
     s = np.sqrt(jv[x])
     _jet_unary(x, s, 0.5 / s, -0.25 / (s * jv[x]), jv, jg, jh, o, order)
 
 
-@njit(**KERNEL)
+@njit(**KERNEL, inline="always")
 def _jet_inv(x, jv, jg, jh, o, order):
     v = jv[x]
     _jet_unary(x, 1.0 / v, -1.0 / (v * v), 2.0 / (v * v * v), jv, jg, jh, o, order)
