@@ -32,6 +32,7 @@ from numba import njit
 from .discretize.dkt import apply_map, element_chart, gather_element, point_map
 from .kernels.material import V_P, mat_prepare, new_state
 from .kernels.point import _reference_geometry
+from .kernels.small import det3, inv3
 
 
 @njit(cache=True)
@@ -45,8 +46,8 @@ def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, F_out, P_out, S
     bref, bcur, ref, v = np.zeros((9, 3)), np.zeros((9, 3)), np.zeros(15), np.zeros(15)
     E, Lam, dg, na, kap, gup = (np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((2, 2, 3)),
                                 np.zeros((2, 3)), np.zeros((3, 3)), np.zeros((2, 3)))
-    F = np.zeros((3, 3))
-    G = np.zeros((3, 3))
+    F, G, Gi, A, P, sig = (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)),
+                           np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)))
     for e in range(tri.shape[0]):
         gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
         area_out[e] = element_chart(Xe, Te, Q, gl, et, el)
@@ -64,11 +65,21 @@ def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, F_out, P_out, S
                     F[i, j] = v[i] * gup[0, j] + v[3 + i] * gup[1, j] + Y1[e, iq, i] * n[j]
                     G[i, j] = (lam[0] * G0n[tri[e, 0], i, j] + lam[1] * G0n[tri[e, 1], i, j]
                                + lam[2] * G0n[tri[e, 2], i, j])
-            Gi = np.linalg.inv(G)
-            A = F @ Gi
+            # A = F G^-1, P = det(G) dW/dA G^-T, sigma = P F^T / det(F)
+            detG = inv3(G, Gi)
+            for i in range(3):
+                for j in range(3):
+                    A[i, j] = F[i, 0] * Gi[0, j] + F[i, 1] * Gi[1, j] + F[i, 2] * Gi[2, j]
             mat_prepare(kind, psi, params, A, mv, mm, mp)
-            P = np.linalg.det(G) * mv[V_P].reshape(3, 3) @ Gi.T
-            sig = P @ F.T / np.linalg.det(F)
+            PA = mv[V_P]
+            for i in range(3):
+                for j in range(3):
+                    P[i, j] = detG * (PA[3 * i] * Gi[j, 0] + PA[3 * i + 1] * Gi[j, 1]
+                                      + PA[3 * i + 2] * Gi[j, 2])
+            detF = det3(F)
+            for i in range(3):
+                for j in range(3):
+                    sig[i, j] = (P[i, 0] * F[j, 0] + P[i, 1] * F[j, 1] + P[i, 2] * F[j, 2]) / detF
             w = wts[iq]
             wsum += w
             for i in range(3):

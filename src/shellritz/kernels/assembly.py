@@ -439,10 +439,15 @@ def hessian_pattern(tri, free_index):
                 if J <= I:
                     buf[k] = J
                     k += 1
-        seg = np.sort(buf[:k])
-        for k in range(seg.shape[0]):
-            if k == 0 or seg[k] != seg[k - 1]:
-                nbr[m] = seg[k]
+        for i in range(1, k):               # insertion sort (a few dozen entries)
+            v, j = buf[i], i
+            while j > 0 and buf[j - 1] > v:
+                buf[j] = buf[j - 1]
+                j -= 1
+            buf[j] = v
+        for i in range(k):
+            if i == 0 or buf[i] != buf[i - 1]:
+                nbr[m] = buf[i]
                 m += 1
         nptr[I + 1] = m
     # rank[J, l]: free DOFs of node J before l; offset[s]: columns before slot s

@@ -998,7 +998,7 @@ def _eps(k, i, j):
     return 0.5 * (i - j) * (j - k) * (k - i)
 
 
-@njit(**KERNEL, inline="always")
+@njit(**KERNEL)
 def _cross_into(x, y, c, out, o):
     """out[o:o+3] += c x cross y."""
     out[o] += c * (x[1] * y[2] - x[2] * y[1])
@@ -1006,7 +1006,7 @@ def _cross_into(x, y, c, out, o):
     out[o + 2] += c * (x[0] * y[1] - x[1] * y[0])
 
 
-@njit(**KERNEL, inline="always")
+@njit(**KERNEL)
 def _add_cross_jacobian(M, row, cx_, cy, x, y, c):
     """M[row:row+3, cx_:cx_+3] += c d(x cross y)/dx, M[row:row+3, cy:cy+3] += c d(x cross y)/dy."""
     for k in range(3):
@@ -1018,7 +1018,7 @@ def _add_cross_jacobian(M, row, cx_, cy, x, y, c):
                     M[row + k, cy + j] += e * x[i]
 
 
-@njit(**KERNEL, inline="always")
+@njit(**KERNEL)
 def _add_cross_pair(M, bx, by, w, c):
     """Second derivatives of c w.(x cross y) between the blocks x (at bx) and y (at by)."""
     for k in range(3):
