@@ -89,120 +89,155 @@ def _regge_element_terms(mode, WC, w, gamma, X, Y, dD, XdD, ge, ke):
 
 
 @njit(**KERNEL)
-def _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n,
-             qp, qm, has_load, pf, zf, Y1, Y2, ge, ke, sc, wk, rw):
-    """Energy of element e; ge (9, 3) and the upper triangle of ke (27, 27) if
-    mode asks; regge: the assumed membrane metric (discretize/regge.py); pf,
-    zf: follower pressure on the face Z = zf (point_kernel).  Returns (L, status)."""
+def _point_data(e, iq, bary, wts, area, Q, gl, et, el, b, C, bref, bcur, ref, v, tri, h, G0n,
+                G1n, qp, qm, has_load, G0, G1, dG0, qb, m, dm, gE, gLam, gdg, gna, gkap, gup):
+    """Quadrature point iq of element e: its map b, reference and current
+    vectors ref, v, the growth G0, G1 and dG0/dtheta, the load resultants qb,
+    m, dm (MODEL.md eq:qm); returns the weight (rule weight x area x jacobian)."""
+    n0, n1, n2 = tri[e, 0], tri[e, 1], tri[e, 2]
+    lam = bary[iq]
+    point_map(lam, Q, gl, et, el, b, C)
+    apply_map(b, bref, ref)
+    apply_map(b, bcur, v)
+    jx = ref[1] * ref[5] - ref[2] * ref[4]
+    jy = ref[2] * ref[3] - ref[0] * ref[5]
+    jz = ref[0] * ref[4] - ref[1] * ref[3]
+    for r in range(3):
+        for c in range(3):
+            G0[r, c] = lam[0] * G0n[n0, r, c] + lam[1] * G0n[n1, r, c] + lam[2] * G0n[n2, r, c]
+            G1[r, c] = lam[0] * G1n[n0, r, c] + lam[1] * G1n[n1, r, c] + lam[2] * G1n[n2, r, c]
+            for a in range(2):
+                dG0[a, r, c] = (gl[0, a] * G0n[n0, r, c] + gl[1, a] * G0n[n1, r, c]
+                                + gl[2, a] * G0n[n2, r, c])
+    for c in range(3):
+        qb[c] = 0.0
+        m[c] = 0.0
+        dm[0, c] = 0.0
+        dm[1, c] = 0.0
+    if has_load:
+        H, K, ok = _reference_geometry(ref, gE, gLam, gdg, gna, gkap, gup)
+        mup = 1.0 - H * h + 0.25 * K * h * h      # mu(+h/2)
+        mum = 1.0 + H * h + 0.25 * K * h * h      # mu(-h/2)
+        for c in range(3):
+            qpc = lam[0] * qp[n0, c] + lam[1] * qp[n1, c] + lam[2] * qp[n2, c]
+            qmc = lam[0] * qm[n0, c] + lam[1] * qm[n1, c] + lam[2] * qm[n2, c]
+            qb[c] = (mup * qpc + mum * qmc) / h
+            m[c] = 0.5 * (mup * qpc - mum * qmc)
+            for a in range(2):
+                dqp = gl[0, a] * qp[n0, c] + gl[1, a] * qp[n1, c] + gl[2, a] * qp[n2, c]
+                dqm = gl[0, a] * qm[n0, c] + gl[1, a] * qm[n1, c] + gl[2, a] * qm[n2, c]
+                dm[a, c] = 0.5 * (mup * dqp - mum * dqm)
+    return wts[iq] * area * np.sqrt(jx * jx + jy * jy + jz * jz)
+
+
+@njit(**KERNEL)
+def _add_point(mode, w, b, grad, hess, T15, ge, ke):
+    """ge += w (b (x) I3)^T grad, upper triangle of ke += w (b (x) I3)^T hess (b (x) I3)."""
+    if mode >= 1:
+        for k in range(9):
+            for c in range(3):
+                s = 0.0
+                for a in range(5):
+                    s += b[a, k] * grad[3 * a + c]
+                ge[k, c] += w * s
+    if mode >= 2:
+        # T15 = H (b (x) I3): T15[(a,c), (k,c')] = sum_a' H[(a,c),(a',c')] b[a',k]
+        for r in range(15):
+            for k in range(9):
+                for c2 in range(3):
+                    s = 0.0
+                    for a2 in range(5):
+                        s += hess[r, 3 * a2 + c2] * b[a2, k]
+                    T15[r, 3 * k + c2] = s
+        for k in range(9):
+            for c in range(3):
+                row = 3 * k + c
+                for col in range(row, 27):
+                    s = 0.0
+                    for a in range(5):
+                        s += b[a, k] * T15[3 * a + c, col]
+                    ke[row, col] += w * s
+
+
+@njit(**KERNEL)
+def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n, qp, qm,
+             has_load, pf, zf, Y1, Y2, ge, ke, sc, wk):
+    """Energy of element e with the DKT membrane metric; ge (9, 3) and the
+    upper triangle of ke (27, 27) if mode asks; pf, zf: follower pressure pf
+    on the face Z = zf (point_kernel).  Returns (L, status)."""
+    (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
+     T15, gE, gLam, gdg, gna, gkap, gup) = wk
+    gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
+    area = element_chart(Xe, Te, Q, gl, et, el)
+    Le = 0.0
+    zero_element(mode, ge, ke)
+    for iq in range(bary.shape[0]):
+        w = _point_data(e, iq, bary, wts, area, Q, gl, et, el, b, C, bref, bcur, ref, v, tri, h,
+                        G0n, G1n, qp, qm, has_load, G0, G1, dG0, qb, m, dm, gE, gLam, gdg, gna,
+                        gkap, gup)
+        L, st = point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0, qb, m, dm,
+                             Y1[e, iq], Y2[e, iq], grad, hess, sc, pf, zf)
+        if st != OK:
+            return np.nan, st
+        Le += w * L
+        _add_point(mode, w, b, grad, hess, T15, ge, ke)
+    return Le, OK
+
+
+@njit(**KERNEL)
+def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n, qp,
+                   qm, has_load, pf, zf, Y1, Y2, ge, ke, sc, wk, rw):
+    """_element with the assumed membrane metric of discretize/regge.py: the
+    point kernel receives tangent vectors with that metric, and the chain rule
+    runs through the element data."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
     (WC, wv, alpha, Fw, wref, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
      Xr, Yr, gam, g6, T3, XdD, Dref) = rw
     gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
-    n0, n1, n2 = tri[e, 0], tri[e, 1], tri[e, 2]
     area = element_chart(Xe, Te, Q, gl, et, el)
     Le = 0.0
     zero_element(mode, ge, ke)
-    if regge:
-        beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
-        data_maps(Q, et, el, WC)
-        metric_coefficients(bary, wts, et, alpha, Fw)
-        for j in range(N_DATA):
-            gam[j] = 0.0
-            for i in range(N_DATA):
-                Yr[j, i] = 0.0
-            for p in range(27):
-                Xr[p, j] = 0.0
-        data_values(WC, bref, wref, Dref)
-        data_values(WC, bcur, wv, D)
+    beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
+    data_maps(Q, et, el, WC)
+    metric_coefficients(bary, wts, et, alpha, Fw)
+    for j in range(N_DATA):
+        gam[j] = 0.0
+        for i in range(N_DATA):
+            Yr[j, i] = 0.0
+        for p in range(27):
+            Xr[p, j] = 0.0
+    data_values(WC, bref, wref, Dref)
+    data_values(WC, bcur, wv, D)
     for iq in range(bary.shape[0]):
-        lam = bary[iq]
-        point_map(lam, Q, gl, et, el, b, C)
-        apply_map(b, bref, ref)
-        apply_map(b, bcur, v)
-        jx = ref[1] * ref[5] - ref[2] * ref[4]
-        jy = ref[2] * ref[3] - ref[0] * ref[5]
-        jz = ref[0] * ref[4] - ref[1] * ref[3]
-        w = wts[iq] * area * np.sqrt(jx * jx + jy * jy + jz * jz)
-        for r in range(3):
-            for c in range(3):
-                G0[r, c] = lam[0] * G0n[n0, r, c] + lam[1] * G0n[n1, r, c] + lam[2] * G0n[n2, r, c]
-                G1[r, c] = lam[0] * G1n[n0, r, c] + lam[1] * G1n[n1, r, c] + lam[2] * G1n[n2, r, c]
-                for a in range(2):
-                    dG0[a, r, c] = (gl[0, a] * G0n[n0, r, c] + gl[1, a] * G0n[n1, r, c]
-                                    + gl[2, a] * G0n[n2, r, c])
+        w = _point_data(e, iq, bary, wts, area, Q, gl, et, el, b, C, bref, bcur, ref, v, tri, h,
+                        G0n, G1n, qp, qm, has_load, G0, G1, dG0, qb, m, dm, gE, gLam, gdg, gna,
+                        gkap, gup)
+        # x = (r_1, r_2, Ahat), Ahat = K^T A(U) K (regge.py)
+        if not match_reference(alpha[iq], Dref, ref):
+            return np.nan, ERR_METRIC
+        for i in range(6):
+            x9[i] = v[i]
         for c in range(3):
-            qb[c] = 0.0
-            m[c] = 0.0
-            dm[0, c] = 0.0
-            dm[1, c] = 0.0
-        if has_load:
-            H, K, ok = _reference_geometry(ref, gE, gLam, gdg, gna, gkap, gup)
-            mup = 1.0 - H * h + 0.25 * K * h * h      # mu(+h/2)
-            mum = 1.0 + H * h + 0.25 * K * h * h      # mu(-h/2)
-            for c in range(3):
-                qpc = lam[0] * qp[n0, c] + lam[1] * qp[n1, c] + lam[2] * qp[n2, c]
-                qmc = lam[0] * qm[n0, c] + lam[1] * qm[n1, c] + lam[2] * qm[n2, c]
-                qb[c] = (mup * qpc + mum * qmc) / h
-                m[c] = 0.5 * (mup * qpc - mum * qmc)
-                for a in range(2):
-                    dqp = gl[0, a] * qp[n0, c] + gl[1, a] * qp[n1, c] + gl[2, a] * qp[n2, c]
-                    dqm = gl[0, a] * qm[n0, c] + gl[1, a] * qm[n1, c] + gl[2, a] * qm[n2, c]
-                    dm[a, c] = 0.5 * (mup * dqp - mum * dqm)
-        y1 = Y1[e, iq]
-        y2 = Y2[e, iq]
-        if regge:
-            # x = (r_1, r_2, Ahat), Ahat = K^T A(U) K (regge.py)
-            if not match_reference(alpha[iq], Dref, ref):
-                return np.nan, ERR_METRIC
-            for i in range(6):
-                x9[i] = v[i]
-            for c in range(3):
-                s = 0.0
-                for j in range(N_DATA):
-                    s += alpha[iq, c, j] * D[j]
-                x9[6 + c] = s
-            if not tangent_map(x9, beta, jv, jg, jh, mode):
-                return np.nan, ERR_METRIC
-            tangent_vectors(x9, jv, jg, rhat, Jf, mode)
-            for i in range(15):
-                vhat[i] = rhat[i] if i < 6 else v[i]
-            L, st = point_kernel(mode, level, kind, psi, params, h, vhat, ref, G0, G1, dG0, qb,
-                                 m, dm, y1, y2, grad, hess, sc, pf, zf)
-        else:
-            L, st = point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0, qb, m,
-                                 dm, y1, y2, grad, hess, sc, pf, zf)
+            s = 0.0
+            for j in range(N_DATA):
+                s += alpha[iq, c, j] * D[j]
+            x9[6 + c] = s
+        if not tangent_map(x9, beta, jv, jg, jh, mode):
+            return np.nan, ERR_METRIC
+        tangent_vectors(x9, jv, jg, rhat, Jf, mode)
+        for i in range(15):
+            vhat[i] = rhat[i] if i < 6 else v[i]
+        L, st = point_kernel(mode, level, kind, psi, params, h, vhat, ref, G0, G1, dG0, qb, m,
+                             dm, Y1[e, iq], Y2[e, iq], grad, hess, sc, pf, zf)
         if st != OK:
             return np.nan, st
         Le += w * L
-        if regge and mode >= 1:
+        if mode >= 1:
             _regge_point(mode, iq, w, b, alpha, x9, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ,
                          HzA, HAA, T3, Xr, Yr, gam)
-        if mode >= 1:
-            for k in range(9):
-                for c in range(3):
-                    s = 0.0
-                    for a in range(5):
-                        s += b[a, k] * grad[3 * a + c]
-                    ge[k, c] += w * s
-        if mode >= 2:
-            # T15 = H (b (x) I3): T15[(a,c), (k,c')] = sum_a' H[(a,c),(a',c')] b[a',k]
-            for r in range(15):
-                for k in range(9):
-                    for c2 in range(3):
-                        s = 0.0
-                        for a2 in range(5):
-                            s += hess[r, 3 * a2 + c2] * b[a2, k]
-                        T15[r, 3 * k + c2] = s
-            for k in range(9):
-                for c in range(3):
-                    row = 3 * k + c
-                    for col in range(row, 27):
-                        s = 0.0
-                        for a in range(5):
-                            s += b[a, k] * T15[3 * a + c, col]
-                        ke[row, col] += w * s
-    if regge and mode >= 1:
+        _add_point(mode, w, b, grad, hess, T15, ge, ke)
+    if mode >= 1:
         _regge_element_terms(mode, WC, wv, gam, Xr, Yr, gD, XdD, ge, ke)
     return Le, OK
 
@@ -327,7 +362,8 @@ def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, w
     order: the elements sorted by colour, colour c being
     order[colour_start[c]:colour_start[c + 1]] (see color_elements); the
     elements of a colour run in parallel (kernels/parallel.py).
-    regge: the assumed membrane metric of discretize/regge.py (else the DKT one).
+    regge: the assumed membrane metric of discretize/regge.py (else the DKT
+    one; each is compiled on its first use).
     pf, zf: the points' part of a follower pressure pf on the face Z = zf
     (point_kernel; the volume of the positions is the caller's).
     status[e] = point-kernel status of the first failing point, or ERR_METRIC (0: ok).
@@ -336,18 +372,37 @@ def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, w
         G[:] = 0.0
     if mode >= 2:
         data[:] = 0.0
+    kernel = assemble_elements_regge if regge else assemble_elements
     for c in range(colour_start.shape[0] - 1):
-        run_chunks(assemble_elements, colour_start[c], colour_start[c + 1], mode, level, kind,
-                   psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n, qp, qm, has_load,
-                   pf, zf, Y1, Y2, order, emap, Le, G, data, status)
+        run_chunks(kernel, colour_start[c], colour_start[c + 1], mode, level, kind, psi, params,
+                   h, tri, X, T, U, bary, wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2,
+                   order, emap, Le, G, data, status)
 
 
 @njit(cache=True, nogil=True)
-def assemble_elements(lo, hi, mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts,
-                      G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, emap, Le, G, data,
-                      status):
+def assemble_elements(lo, hi, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
+                      G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, emap, Le, G, data, status):
     """The elements order[lo:hi] (no two sharing a node) into Le, G, data,
-    status (see assemble_dkt)."""
+    status (see assemble_dkt), DKT metric."""
+    sc = new_scratch()
+    wk = _element_work()
+    ge = np.zeros((9, 3))
+    ke = np.zeros((27, 27))
+    for j in range(lo, hi):
+        e = order[j]
+        Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary,
+                                    wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, ge, ke, sc,
+                                    wk)
+        if status[e] == OK:
+            scatter_element(e, mode, tri, ge, ke, emap, G, data)
+
+
+@njit(cache=True, nogil=True)
+def assemble_elements_regge(lo, hi, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts,
+                            G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, emap, Le, G, data,
+                            status):
+    """assemble_elements with the assumed membrane metric (a separate kernel:
+    scenes without it do not compile it)."""
     sc = new_scratch()
     wk = _element_work()
     rw = _regge_work()
@@ -355,9 +410,9 @@ def assemble_elements(lo, hi, mode, level, kind, psi, params, h, regge, tri, X, 
     ke = np.zeros((27, 27))
     for j in range(lo, hi):
         e = order[j]
-        Le[e], status[e] = _element(e, mode, level, kind, psi, params, h, regge, tri, X, T, U,
-                                    bary, wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, ge,
-                                    ke, sc, wk, rw)
+        Le[e], status[e] = _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U,
+                                          bary, wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2,
+                                          ge, ke, sc, wk, rw)
         if status[e] == OK:
             scatter_element(e, mode, tri, ge, ke, emap, G, data)
 
