@@ -196,6 +196,22 @@ def test_user_law_must_be_stress_free_at_identity():
         invariant_law_from_sympy(I1 + J, I1, I2, J)
 
 
+def test_user_law_must_be_a_cfunc_of_the_callback_signature():
+    """The kernels call the law at its address: anything but a cfunc of
+    PSI_SIGNATURE is refused before it can be called."""
+    import numba as nb
+    from numba import types
+
+    def psi(I1, I2, J, par, out):
+        out[0] = 0.0
+    with pytest.raises(TypeError, match="numba.cfunc of signature"):
+        InvariantLaw(psi)
+    wrong = nb.cfunc(types.void(types.float64, types.float64, types.float64,
+                                types.CPointer(types.float64)))(lambda a, b, c, o: None)
+    with pytest.raises(TypeError, match="numba.cfunc of signature"):
+        InvariantLaw(wrong)
+
+
 def test_user_law_with_i2_dependence():
     """A Mooney-Rivlin-type law exercises the I2 algebra through a user callback."""
     sp = pytest.importorskip("sympy")

@@ -43,6 +43,7 @@ import math
 
 import numba as nb
 import numpy as np
+from numba.core.ccallback import CFunc
 
 from .kernels.material import (COMPACT_INDEX, KIND_INVARIANT, KIND_LINEAR,
                                M_AA, N_PSI, PSI_SIGNATURE, S_W, V_P, mat_d3,
@@ -74,8 +75,12 @@ class Law:
     name = "law"
 
     def __init__(self, params, psi):
+        if not isinstance(psi, CFunc) or psi._sig != PSI_SIGNATURE:
+            raise TypeError(f"{type(self).__name__}: psi must be a numba.cfunc of signature "
+                            f"{PSI_SIGNATURE}, got {psi!r}")
         self.params = np.ascontiguousarray(params, dtype=np.float64)
-        self.psi = psi
+        self.cfunc = psi              # kept alive: the kernels call it at its address
+        self.psi = psi.address
 
     def __repr__(self):
         return f"{type(self).__name__}({', '.join(f'{v:g}' for v in self.params)})"

@@ -37,6 +37,7 @@ loops: 1.5-2x faster than a run-time ``nk``).
 """
 
 import numpy as np
+from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
@@ -115,6 +116,24 @@ def _ptr(typingctx, arr):
         ary = context.make_array(signature.args[0])(context, builder, args[0])
         return ary.data
     return types.CPointer(arr.dtype)(arr), codegen
+
+
+@intrinsic
+def _call_psi(typingctx, address, I1, I2, J, par, out):
+    """Call the law callback at the integer address (a cfunc of PSI_SIGNATURE,
+    materials.Law.psi).  The kernels take the law as an address rather than
+    a first-class function: unboxing a function argument costs ~35 us on every
+    call of a kernel from Python, more than a small assembly chunk."""
+    sig = types.void(types.intp, types.float64, types.float64, types.float64,
+                     types.CPointer(types.float64), types.CPointer(types.float64))
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fnty = ir.FunctionType(ir.VoidType(), [d, d, d, d.as_pointer(), d.as_pointer()])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, args[1:])
+        return context.get_dummy_value()
+    return sig, codegen
 
 
 
@@ -298,7 +317,7 @@ def _forms(nk, mv, mm, c, qc, gc):
 # ---------------------------------------------------------------------------
 
 @njit(**KERNEL)
-def mat_prepare(kind, psi_fn, params, A, mv, mm, mp):
+def mat_prepare(kind, psi, params, A, mv, mm, mp):
     """Evaluate W, P and AA at A (3x3) into the state (mv, mm, mp).
 
     Returns 0, or 1 when det A <= 0 (inverted element), or 2 when the law
@@ -364,7 +383,7 @@ def mat_prepare(kind, psi_fn, params, A, mv, mm, mp):
     mp[S_I1] = I1
     mp[S_I2] = I2
     ps = mp[S_PSI:S_PSI + N_PSI]
-    psi_fn(I1, I2, J, _ptr(params), _ptr(mp[S_PSI:]))
+    _call_psi(psi, I1, I2, J, _ptr(params), _ptr(mp[S_PSI:]))
     use2 = False
     for n in range(N_PSI):
         if not np.isfinite(ps[n]):

@@ -354,7 +354,7 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
     """Energy density L at one point, and grad (15) / hess (15x15) if asked.
 
     mode: MODE_ENERGY | MODE_GRADIENT | MODE_HESSIAN; level: LEVEL_*.
-    kind, psi, params: the law (materials.Law.kind, .psi, .params).
+    kind, psi, params: the law (materials.Law.kind, .psi: its cfunc's address, .params).
     v, ref: (r_1, r_2, r_11, r_12, r_22) current / reference, any coordinates.
     G0, G1: growth G(Z) = G0 + Z G1 (global 3x3); dG0[a] = dG0/dtheta^a.
     qbar, m, dm[a]: load resultants (eq:qm) and dm/dtheta^a.
