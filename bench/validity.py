@@ -556,6 +556,7 @@ def run_dkt(quick, only):
                 "setup": "RevolutionScene.solve('dkt', level='consistent', n, steps=10): a quarter sphere "
                          "with symmetry planes, nphi square elements on the widest ring; energies 4 x quarter"})
     for res in dkt_scenes(res, quick, only):
+        res["machine"] = machine_info()       # as of the last run (each case has its own)
         RESULTS.mkdir(exist_ok=True)
         DKT_RESULTS.write_text(json.dumps(res, indent=1, default=float))
     print(dkt_table(res))
