@@ -13,10 +13,18 @@
    10 steps): without the term, the failing meshes and the critical element
    size along the continuation path; with it, energy and profile under
    refinement (n = 32 ... 512, h = 0.05, 0.1, 0.2) and the triangle engine
-   (cone, h = 0.2, l = h ... h/4).
+   without and with the term (cone, h = 0.2, l = h ... h/4);
+5. the triangle engine with the term on both scenes, h = 0.05, 0.1, 0.2,
+   l = h, h/2, h/4 (h = 0.2: on to h/16): convergence, stability, Newton
+   iterations, time, energy and meridian against the axisymmetric engine at
+   n = 512, the strain-gradient share at the poles (the cone points).
 
-Writes bench/results/validity.json and validity.png.
-Run: python bench/validity.py [--quick]   (--quick: n <= 128, DKT n <= 32)
+Writes bench/results/validity.json and validity.png (1-4) and
+validity_dkt.json (5; the finest meshes, 41 952 triangles, take about 8
+minutes each on one thread, the whole of 5 about 40 minutes).
+Run: python bench/validity.py [--quick]   (--quick: n <= 128, DKT n <= 32; 5: the two coarsest)
+     python bench/validity.py --dkt [--only 'fold h=0.05' ...]   (5 only; --only: these cases,
+                                           merged into the existing validity_dkt.json)
      python bench/validity.py --tables     (markdown tables of the last results)
 """
 
