@@ -13,10 +13,18 @@
    10 steps): without the term, the failing meshes and the critical element
    size along the continuation path; with it, energy and profile under
    refinement (n = 32 ... 512, h = 0.05, 0.1, 0.2) and the triangle engine
-   (cone, h = 0.2, l = h ... h/4).
+   without and with the term (cone, h = 0.2, l = h ... h/4);
+5. the triangle engine with the term on both scenes, h = 0.05, 0.1, 0.2,
+   l = h, h/2, h/4 (h = 0.2: on to h/16): convergence, stability, Newton
+   iterations, time, energy and meridian against the axisymmetric engine at
+   n = 512, the strain-gradient share at the poles (the cone points).
 
-Writes bench/results/validity.json and validity.png.
-Run: python bench/validity.py [--quick]   (--quick: n <= 128, DKT n <= 32)
+Writes bench/results/validity.json and validity.png (1-4) and
+validity_dkt.json (5; the finest meshes, 41 952 triangles, take about 8
+minutes each on one thread, the whole of 5 about 40 minutes).
+Run: python bench/validity.py [--quick]   (--quick: n <= 128, DKT n <= 32; 5: the two coarsest)
+     python bench/validity.py --dkt [--only 'fold h=0.05' ...]   (5 only; --only: these cases,
+                                           merged into the existing validity_dkt.json)
      python bench/validity.py --tables     (markdown tables of the last results)
 """
 
@@ -44,6 +52,7 @@ from test_validity import (LAW, cone_scene, fold_scene, inplane, shell_symbol,  
                            slab_symbol_3d, strain_gradient_symbol)
 
 RESULTS = HERE / "results"
+DKT_RESULTS = RESULTS / "validity_dkt.json"
 HERMITE_C = 60.0      # max of int u''^2 / int u'^2 times l^2 over C1 cubic Hermite fields
 
 
@@ -306,6 +315,129 @@ def dkt_runs(sizes):
     return rows
 
 
+# ---------------------------------------------------------------------------
+# 5: the triangle engine on both scenes, elements from h down to h/4
+# ---------------------------------------------------------------------------
+
+# n along the meridian for each h: l = pi/n from about h to about h/4 (h = 0.2:
+# on to h/16, where the cone point's strain-gradient energy shows, section 6)
+DKT_SIZES = {0.2: (16, 32, 64, 128, 256), 0.1: (32, 64, 128), 0.05: (64, 128, 256)}
+DKT_AXISYM_N = 512      # the axisymmetric energy of the same scene the triangles are compared with
+
+
+def dkt_run(name, h, n, nphi=None, axisym=None):
+    """One triangle solve of a scene (a quarter sphere with symmetry planes,
+    consistent level, 10 steps; nphi None: square elements on the widest
+    ring).  Energies are 4 x the quarter's.  A failed solve is recorded with
+    its last converged t and the validity measures of that state.  axisym: a
+    solved axisymmetric result of the same scene; the meridian phi = 0 of the
+    triangles is compared with it (largest distance at the nodes).  The
+    strain-gradient energy of the triangles within 2 l of the axis (the
+    poles) is recorded apart."""
+    import warnings
+    from shellritz.validity import ValidityWarning
+    scene = SCENES[name](h)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ValidityWarning)
+        try:
+            r = scene.solve("dkt", level="consistent", n=n, steps=10, nphi=nphi)
+            raw, row = r.raw, {"converged": True, "iterations": r.iterations, "dofs": r.dofs}
+            if axisym is not None:
+                a, b = axisym.raw.at(r.s)
+                row["profile_difference"] = float(np.hypot(r.a - a, r.b - b).max())
+        except SolveError as exc:
+            raw, row = exc.result, {"converged": False, "last_t": exc.last_t,
+                                    "iterations": len(exc.history.iterations)}
+    wall = time.perf_counter() - t0
+    sh = raw.shell
+    if nphi is None:      # as RevolutionScene._solve_dkt: square elements on the widest ring
+        s = np.linspace(*scene.s_range, n + 1)
+        nphi = max(1, int(round(np.abs(scene._sample(s)[0]).max() * np.pi / 2 / (s[1] - s[0]))))
+    nphi_used = nphi
+    sg = sh.strain_gradient
+    V = raw.validity
+    X = sh.mesh.vertices
+    c = X[sh.mesh.triangles].mean(axis=1)
+    near_axis = np.hypot(c[:, 0], c[:, 1]) < 2 * np.pi / n
+    row.update({"scene": name, "h": h, "n": n, "nphi": nphi_used, "triangles": int(sh.mesh.n_triangles),
+                "l_over_h": np.pi / n / h, "l_phi_over_h": np.pi / 2 / nphi_used / h,
+                "stable": bool(raw.history.stable) if raw.history.stable is not None else None,
+                "energy": 4 * raw.energy, "t": raw.t, "wall_s": wall,
+                "assemblies": raw.history.assemblies, "linear": raw.history.linear,
+                "strain_gradient_share": (float(sg.per_element.sum() / raw.energy) if sg is not None else 0.0),
+                "active_triangles": int(sg.active.sum()) if sg is not None else 0,
+                "pole_strain_gradient_share": (float(sg.per_element[near_axis].sum() / raw.energy)
+                                               if sg is not None else 0.0),
+                "pole_triangles": int(near_axis.sum()),
+                "validity": {k: {"max": float(getattr(V, k).max()), "flagged": len(v),
+                                 "worst": [int(e) for e in v[np.argsort(-getattr(V, k)[v])][:8]]}
+                             for k, v in V.flagged.items()},
+                "warnings": [str(w.message) for w in caught if issubclass(w.category, ValidityWarning)]})
+    print(f"dkt {name} h={h} n={n} nphi={nphi_used} ({row['triangles']} triangles, l/h = {row['l_over_h']:.3f}): "
+          + (f"E = {row['energy']:.8e}, {row['iterations']} iterations, stable {row['stable']}"
+             if row["converged"] else f"FAILS beyond t = {row['last_t']:.4f}")
+          + f", {wall:.1f} s; R/E = {row['strain_gradient_share']:.1e} "
+          f"({row['pole_strain_gradient_share']:.1e} in the {row['pole_triangles']} triangles at the poles)"
+          + (f", meridian {row['profile_difference']:.1e} from the axisymmetric" if "profile_difference" in row
+             else ""), flush=True)
+    return row
+
+
+def dkt_scenes(res, quick, only=None):
+    """Both scenes at h = 0.05, 0.1, 0.2 on the triangle engine (l = h ... h/4),
+    with the axisymmetric energy at n = DKT_AXISYM_N for comparison.
+    res["dkt_scenes"][key] = {"axisym_energy": ..., "runs": [...]}; written
+    after every run."""
+    out = res.setdefault("dkt_scenes", {})
+    for name in SCENES:
+        for h in (0.2, 0.1, 0.05):
+            key = f"{name} h={h}"
+            if only and key not in only:
+                continue
+            ax = {m: SCENES[name](h).solve("axisym", level="consistent", n=m, steps=10)
+                  for m in (256, DKT_AXISYM_N)}
+            entry = out[key] = {"axisym_energy": ax[DKT_AXISYM_N].raw.energy,
+                                "axisym_energy_256": ax[256].raw.energy, "axisym_n": DKT_AXISYM_N,
+                                "axisym_strain_gradient_share": float(
+                                    ax[DKT_AXISYM_N].raw.engine.strain_gradient.per_element.sum()
+                                    / ax[DKT_AXISYM_N].raw.energy), "runs": []}
+            sizes = DKT_SIZES[h][:2] if quick else DKT_SIZES[h]
+            for n in sizes:
+                entry["runs"].append(dkt_run(name, h, n, axisym=ax[DKT_AXISYM_N]))
+                entry["machine"] = machine_info()     # load average after the run (shared machine)
+                yield res
+            runs = [r for r in entry["runs"] if r["converged"]]
+            for r in runs:
+                r["difference_to_axisym"] = (r["energy"] - entry["axisym_energy"]) / abs(entry["axisym_energy"])
+            if len(runs) >= 2:
+                entry["last_change"] = (runs[-1]["energy"] - runs[-2]["energy"]) / abs(entry["axisym_energy"])
+            yield res
+
+
+def dkt_table(res):
+    """Markdown table of section 5 (results/validity_dkt.json)."""
+    out = ["| scene | h | n | nphi | triangles | l / h | converged, stable | energy (4 x quarter) | vs axisym | "
+           "change from previous | meridian vs axisym | R / E (at the poles) | Newton iterations | wall (s) |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for key, entry in res["dkt_scenes"].items():
+        name, h = key.split(" h=")
+        prev = None
+        for r in entry["runs"]:
+            ok = r["converged"]
+            change = (f"{(r['energy'] - prev) / abs(entry['axisym_energy']):+.2%}" if ok and prev is not None else "")
+            out.append(f"| {name} | {h} | {r['n']} | {r['nphi']} | {r['triangles']} | {r['l_over_h']:.2f} | "
+                       + (f"yes, {'yes' if r['stable'] else 'no'} | {r['energy']:.5e} | "
+                          f"{r['difference_to_axisym']:+.2%} | {change} | {r.get('profile_difference', float('nan')):.1e} | "
+                          if ok else f"no: t = {r['last_t']:.3f} | — | — | — | — | ")
+                       + f"{r['strain_gradient_share']:.1e} ({r['pole_strain_gradient_share']:.1e}) | "
+                       f"{r['iterations']} | {r['wall_s']:.0f} |")
+            prev = r["energy"] if ok else prev
+        out.append(f"| {name} | {h} | axisym, n = {entry['axisym_n']} | | | | | {entry['axisym_energy']:.5e} | | | | "
+                   f"{entry['axisym_strain_gradient_share']:.1e} | | |")
+    return "\n".join(out)
+
+
 def chart(res, path):
     import matplotlib
     matplotlib.use("Agg")
@@ -387,9 +519,19 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--tables", action="store_true", help="print the tables of results/validity.json")
+    ap.add_argument("--dkt", action="store_true",
+                    help="only the triangle engine on both scenes (section 5): results/validity_dkt.json")
+    ap.add_argument("--only", nargs="*", metavar="KEY",
+                    help="with --dkt: only these cases, e.g. 'fold h=0.05' (merged into the existing file)")
     args = ap.parse_args()
     if args.tables:
         print(tables(json.loads((RESULTS / "validity.json").read_text())))
+        if DKT_RESULTS.exists():
+            print()
+            print(dkt_table(json.loads(DKT_RESULTS.read_text())))
+        return
+    if args.dkt:
+        run_dkt(args.quick, args.only)
         return
     res = {"law": "neo-Hookean C = 1, nu = 0.4", "quick": args.quick}
     res["symbol"] = symbols()
@@ -411,6 +553,21 @@ def main():
     res["dkt"] = dkt_runs([16, 32] if args.quick else [16, 32, 64])
     write(res)
     chart(res, RESULTS / "validity.png")
+    run_dkt(args.quick, None)
+
+
+def run_dkt(quick, only):
+    """Section 5 into results/validity_dkt.json (merged with the cases already
+    there when ``only`` names some)."""
+    res = json.loads(DKT_RESULTS.read_text()) if only and DKT_RESULTS.exists() else {}
+    res.update({"law": "neo-Hookean C = 1, nu = 0.4", "quick": quick,
+                "setup": "RevolutionScene.solve('dkt', level='consistent', n, steps=10): a quarter sphere "
+                         "with symmetry planes, nphi square elements on the widest ring; energies 4 x quarter"})
+    for res in dkt_scenes(res, quick, only):
+        res["machine"] = machine_info()       # as of the last run (each case has its own)
+        RESULTS.mkdir(exist_ok=True)
+        DKT_RESULTS.write_text(json.dumps(res, indent=1, default=float))
+    print(dkt_table(res))
 
 
 def write(res):

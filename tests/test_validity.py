@@ -21,7 +21,10 @@ Scenes of the issue (axisymmetric engine, consistent level, 10 steps): before
 the cure cone h = 0.1 failed at n = 128 (t = 0.283), cone h = 0.2 at n = 64
 (t = 0.321), fold h = 0.1 at n = 256 (t = 0.765); now every n = 32 ... 512,
 h = 0.05, 0.1, 0.2 converges in 9-13 Newton iterations (tables in
-docs/validity.md).
+docs/validity.md).  Triangle engine (slow tests at the end): both scenes at
+h = 0.05, 0.1, 0.2 with elements h, h/2, h/4 converge to stable states; the
+cone's strain-gradient energy at its cone points grows like (h/l)^2 below
+that (a documented limitation).
 """
 
 import numpy as np
@@ -360,27 +363,6 @@ def test_results_report_where_the_state_is_outside_the_model_range():
     assert r.raw.validity.ok
 
 
-@pytest.mark.slow
-def test_triangle_engine_converges_with_elements_down_to_a_quarter_thickness():
-    """Cone scene, h = 0.2, quarter sphere of triangles, n = 16, 32, 64 along
-    the meridian (l = 0.98 h, 0.49 h, 0.25 h).  Without the term n = 32 fails
-    at t = 0.94 and n = 64 at t = 0.21 (bench/validity.py).  With it all
-    converge to stable states in 11-12 Newton iterations; 4 x quarter energy
-    2.2892e-3, 2.4004e-3, 2.3970e-3 (change 4.6 %, then 0.14 %), against
-    the axisymmetric 2.3755e-3 (n = 512): 0.9 % apart at n = 64.  That rest
-    is the cone point on triangles: the scene averages the two tangential
-    growths at the pole nodes and the elements there carry up to 9 % of their
-    energy in the strain-gradient term (flagged by Result.validity)."""
-    E = []
-    for n in (16, 32, 64):
-        r = cone_scene(0.2).solve("dkt", level="consistent", n=n, steps=10)
-        assert r.raw.converged and r.raw.history.stable, n
-        E.append(4 * r.raw.energy)
-    axisym = solve_axisym(cone_scene(0.2), 256).raw.energy
-    assert abs(E[2] - E[1]) < 3e-3 * axisym, E
-    assert abs(E[2] - axisym) < 0.01 * axisym, (E, axisym)
-
-
 def test_triangle_results_report_curvature_and_growth_gradient_per_element():
     """DKT Result.validity: a cylinder of radius 1 at h = 0.6 (kappa h = 0.6 in
     every element, above the limit 0.5) with a through-thickness growth
@@ -402,3 +384,123 @@ def test_triangle_results_report_curvature_and_growth_gradient_per_element():
     assert set(V.flagged["growth_gradient_h"]) == set(touching)
     assert V.growth_gradient_h[touching] == pytest.approx(0.6)
     assert len(V.flagged["curvature_h"]) == len(mesh.triangles) and LIMITS["curvature_h"] == 0.5
+
+
+# ---------------------------------------------------------------------------
+# the triangle engine: a quarter sphere of DKT triangles with symmetry planes
+# (bench/validity.py --dkt, bench/results/validity_dkt.json, docs/validity.md
+# section 6)
+# ---------------------------------------------------------------------------
+
+def solve_dkt(scene, h, n):
+    """A scene on triangles (a quarter sphere), n elements along the meridian
+    (l = pi/n), square elements on the equator."""
+    return scene(h).solve("dkt", level="consistent", n=n, steps=10)
+
+
+def meridian_distance(r, axisym):
+    """Largest distance of the triangles' phi = 0 meridian nodes to the
+    solved axisymmetric curve."""
+    a, b = axisym.raw.at(r.s)
+    return float(np.hypot(r.a - a, r.b - b).max())
+
+
+# (scene, h): n for l = h, h/2, h/4, and the bounds of the finest mesh: energy
+# change from the previous mesh and difference to the axisymmetric energy
+# (n = 512), both relative to the latter, and the meridian's distance to the
+# axisymmetric one.  Measured (n = l = h, h/2, h/4):
+#   scene h     energy vs axisym           change at h/4  meridian vs axisym
+#   cone 0.2   -3.63 %, +1.05 %, +0.91 %   -0.14 %        5.5e-3, 1.6e-3, 4.8e-4
+#   cone 0.1   +1.73 %, +0.61 %, +0.49 %   -0.12 %        1.1e-3, 3.8e-4, 9.5e-5
+#   cone 0.05  +2.52 %, +0.68 %, +0.40 %   -0.28 %        3.9e-4, 1.2e-4, 4.8e-5
+#   fold 0.2   -3.64 %, +5.82 %, +1.92 %   -3.91 %        2.5e-2, 4.9e-3, 1.6e-3
+#   fold 0.1   +2.53 %, +0.91 %, +0.26 %   -0.64 %        5.0e-3, 1.5e-3, 4.0e-4
+#   fold 0.05  +0.56 %, +0.18 %, +0.05 %   -0.13 %        1.4e-3, 3.7e-4, 8.9e-5
+# The bounds are the measured values with a margin of about 1.5 (rounded up).
+DKT_CASES = {
+    (cone_scene, 0.2): ((16, 32, 64), 3e-3, 1.2e-2, 7e-4),
+    (cone_scene, 0.1): ((32, 64, 128), 3e-3, 7e-3, 1.5e-4),
+    (cone_scene, 0.05): ((64, 128, 256), 5e-3, 6e-3, 7e-5),
+    (fold_scene, 0.2): ((16, 32, 64), 5e-2, 2.5e-2, 2.5e-3),
+    (fold_scene, 0.1): ((32, 64, 128), 1e-2, 4e-3, 6e-4),
+    (fold_scene, 0.05): ((64, 128, 256), 2e-3, 1e-3, 1.4e-4),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene, h", list(DKT_CASES), ids=[f"{s.__name__.split('_')[0]}-{h}" for s, h in DKT_CASES])
+def test_triangle_engine_converges_with_elements_down_to_a_quarter_thickness(scene, h):
+    """Both scenes, h = 0.05, 0.1, 0.2, quarter sphere of triangles with l =
+    pi/n = 0.98 h, 0.49 h, 0.25 h (176 ... 41 952 triangles; square elements
+    on the equator).  Without the term cone h = 0.2 failed at l = h/2 (t =
+    0.94) and h/4 (t = 0.21).  With it every run converges to a stable state
+    in 11-14 Newton iterations and at l = h/4 the energy is within 0.05-1.9 %
+    of the axisymmetric one (numbers above DKT_CASES): the fold converges to
+    it at order 1.5-1.8 in the energy and about 2 in the meridian; the cone's
+    meridian converges, its energy stays 0.4-0.9 % above (half of that is the
+    strain-gradient energy of the 16 triangles at the poles, see the next
+    test).  Bounds of the fold at h = 0.2 are loose because the case is: the
+    growth band (width 0.12 = 0.6 h) is not resolved at l = h and h/2, the
+    energy jumps +9.5 % and then -3.9 %, and the state is outside the model's
+    range (h |G0^-1 G1| up to 1.5, kappa h 0.84: flagged by Result.validity);
+    below h/4 it goes on converging (+0.66 %, +0.32 % at h/8, h/16,
+    bench/validity.py).  Runtime on 1 thread: about 20 s (h = 0.2), 100 s
+    (0.1), 9 min (0.05) per scene."""
+    sizes, change, gap, meridian = DKT_CASES[scene, h]
+    axisym = solve_axisym(scene(h), 512)
+    Ea = axisym.raw.energy
+    E, M = [], []
+    for n in sizes:
+        r = solve_dkt(scene, h, n)
+        assert r.raw.converged and r.raw.history.stable, n
+        assert r.iterations <= 16, (n, r.iterations)          # 11-14 observed
+        E.append(4 * r.raw.energy)
+        M.append(meridian_distance(r, axisym))
+    d = [(e - Ea) / Ea for e in E]
+    assert abs(E[2] - E[1]) < change * Ea, d
+    assert abs(d[2]) < gap and abs(d[2]) < abs(d[1]), d
+    assert M[2] < meridian and M[2] < M[1] / 2 and M[1] < M[0] / 2, M     # ratios 2.46-5.1 observed
+
+
+def pole_strain_gradient(r, n):
+    """The strain-gradient energy of the triangles within 2 l of the axis,
+    over the quarter's energy."""
+    sh = r.raw.shell
+    c = sh.mesh.vertices[sh.mesh.triangles].mean(axis=1)
+    near = np.hypot(c[:, 0], c[:, 1]) < 2 * np.pi / n
+    return sh.strain_gradient.per_element[near].sum() / r.raw.energy
+
+
+@pytest.mark.slow
+def test_triangle_engine_cone_point_strain_gradient_energy_grows_below_a_quarter_thickness():
+    """A limitation, documented: this test states what happens today and
+    fails when it is cured (then replace it by a convergence test below h/4).
+
+    The cone scene's growth is a cone point at each pole (gamma1 != gamma2
+    there): the grown metric is anisotropic in the polar frame down to r = 0,
+    so the elastic membrane strain e_rr - e_phiphi tends to the mismatch at
+    the tip and its covariant second derivatives, which the triangles' term
+    measures (kernels/strain_gradient_dkt.py), grow like 1 / r^2: R ~
+    C_R / l^2 on the triangles at a pole (the scene averages the two growths
+    at the pole node, so the mismatch is resolved over one element).  The
+    axisymmetric engine's term differentiates the polar components along the
+    meridian only and stays finite (R/E = 4.9e-4 at h = 0.2).
+
+    Measured at h = 0.2 (bench/validity.py --dkt), n = 64, 128, 256 (l = h/4,
+    h/8, h/16): R of the 16 triangles within 2 l of the axis / E = 3.9e-3,
+    1.5e-2, 5.8e-2 (x 3.8 per halving, the 1 / l^2 of the argument), the
+    largest per-triangle share R_e / E_e 0.71, 6.4, 294 (flagged by
+    Result.validity), and the energy, +0.91 % of the axisymmetric one at
+    h/4, rises to +2.3 % and +8.6 %; the meridian away from the poles does not
+    degrade (4.8e-4, 3.9e-4, 4.8e-4 from the axisymmetric one).  The fold
+    (no cone point) keeps converging there.  Runtime about 90 s."""
+    shares, E = [], []
+    for n in (64, 128):
+        r = solve_dkt(cone_scene, 0.2, n)
+        assert r.raw.converged and r.raw.history.stable, n
+        shares.append(pole_strain_gradient(r, n))
+        E.append(4 * r.raw.energy)
+        assert n == 64 or r.raw.validity.strain_gradient_share.max() > 1.0     # 6.4: flagged
+    Ea = solve_axisym(cone_scene(0.2), 512).raw.energy
+    assert 3.0 < shares[1] / shares[0] < 5.0, shares              # 3.8
+    assert (E[1] - E[0]) / Ea > 1e-2, E                           # +1.39 %: rises, away from the axisymmetric
