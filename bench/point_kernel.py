@@ -92,7 +92,7 @@ def material_profile(law, repeats, n=20000):
             elif what == 2:
                 mat_d3_vec(mv, mm, mp, c, C[0], v9)
             else:
-                mat_combination(mv, mm, mp, 1.0, c, True, C, D, w, out)
+                mat_combination(mv, mm, mp, 1.0, c, C, D, w, out)
 
     rng = np.random.default_rng(1)
     A = np.eye(3) + 0.1 * rng.standard_normal((3, 3))
