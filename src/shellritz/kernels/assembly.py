@@ -4,11 +4,10 @@ The elements are coloured once per mesh so that two elements of one colour
 share no node; colour by colour, the elements of a colour run in parallel
 (chunks on threads, kernels/parallel.py, one scratch per chunk) and add
 their gradient and Hessian straight into the global arrays without races:
-no per-element
-matrices are stored.  The Hessian is the lower triangle of the free DOFs in a
-CSR pattern built once per mesh and constraint set; ``emap[e, k]`` is the
-data position of the packed lower-triangle entry k = p (p + 1) / 2 + q
-(q <= p) of element e (-1: a fixed DOF).  Global DOFs of node n: U[n, s, c],
+no per-element matrices are stored.  The Hessian is the lower triangle of
+the free DOFs in a CSR pattern built once per mesh and constraint set;
+``emap[e, k]`` is the data position of the packed lower-triangle entry
+k = p (p + 1) / 2 + q (q <= p) of element e (-1: a fixed DOF).  Global DOFs of node n: U[n, s, c],
 s = 0 position, 1 and 2 the derivatives along T_n1, T_n2; local DOF
 9 i + 3 s + c for the element's node i.
 """
