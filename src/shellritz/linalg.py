@@ -115,8 +115,6 @@ class _PardisoFactor:
         #                            of indefinite leaf Hessians, 7e-2 residuals measured)
         ps.set_iparm(21, 1)        # Bunch-Kaufman 1x1 and 2x2 pivots
         ps.set_iparm(24, 1)        # two-level parallel factorization
-        ps.set_iparm(18, -1)       # report the number of nonzeros of the factor
-        ps.set_iparm(19, -1)       # and the factorization's floating point operations
         self._A = upper_pattern
         self._analysed = False
         self.negative = None
@@ -136,8 +134,6 @@ class _PardisoFactor:
             self.negative = None
             raise LinearSolverError(f"PARDISO factorization failed ({exc})") from exc
         self._analysed = True
-        self.flops = 1e6 * float(self._ps.get_iparm(19))
-        self.solve_flops = 4.0 * float(self._ps.get_iparm(18))   # forward and backward sweeps
         self.negative = int(self._ps.get_iparm(23))
         self.perturbed = int(self._ps.get_iparm(14))
         # perturbed pivots: two steps of iterative refinement in the solves
@@ -148,7 +144,9 @@ class _PardisoFactor:
         return self._call(33, b.reshape(-1, 1) if b.ndim == 1 else np.asfortranarray(b)).reshape(b.shape)
 
     def release(self):
-        self._ps.free_memory(everything=True)
+        if self._analysed:              # PARDISO refuses to free a handle it never analysed
+            self._ps.free_memory(everything=True)
+            self._analysed = False
 
 
 class _SuperLUFactor:
@@ -172,9 +170,6 @@ class _SuperLUFactor:
             raise LinearSolverError("SuperLU left the diagonal while pivoting: no inertia")
         self._lu = lu
         self.negative = int(np.count_nonzero(~(lu.U.diagonal() > 0.0)))
-        # operation counts: sum of squared column counts of L; solves 2 nnz(L + U)
-        self.flops = float(np.sum(np.diff(lu.L.indptr).astype(np.float64) ** 2))
-        self.solve_flops = 2.0 * (lu.L.nnz + lu.U.nnz)
 
     def solve(self, b):
         return self._lu.solve(np.asarray(b, dtype=np.float64))
@@ -273,19 +268,6 @@ class DirectSolver:
         if self._pd is None:
             return None
         return self._slots[self._pd].solve
-
-    def operation_counts(self):
-        """(floating point operations of one factorization, of one
-        preconditioned CG iteration: two triangular sweeps and a product with
-        K), deterministic, for the choice between refactorizing and
-        iterating with an older factorization."""
-        f = self._slots[self._pd if self._pd is not None else self._current]
-        return f.flops, f.solve_flops + 4.0 * len(self._lower.indices)
-
-    def stale(self):
-        """The current Hessian is not factorized (the last positive definite
-        factorization stays the preconditioner)."""
-        self._current = None
 
     def current_is_positive_definite(self):
         """The preconditioner is the factorization of the current Hessian."""
