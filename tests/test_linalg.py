@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 
 from shellritz import NeoHookean, Shell, shapes
-from shellritz.linalg import (METHODS, REGULARIZATION, DirectSolver, LinearSolverError, free_rigid_modes,
+from shellritz.linalg import (METHODS, REGULARIZATION, CGPath, DirectSolver, LinearSolverError, free_rigid_modes,
                               lower_matvec, make_linear_solver, pardiso_available, projector,
                               resolve_method, steihaug_cg, symmetric_from_lower)
 
@@ -129,6 +129,36 @@ def test_cg_follows_negative_curvature_to_the_boundary():
     # without a region (line search) the direction is still a descent direction
     q, info = steihaug_cg(lambda v: A @ v, g, lambda r: r)
     assert g @ q < 0
+
+
+@pytest.mark.parametrize("negative", [0, 2])
+def test_recorded_cg_path_gives_the_step_at_a_smaller_radius(negative):
+    """After a rejected trust-region step the model is the same: the steps
+    at smaller radii come from the recorded CG path without iterations and
+    equal those of new CG solves, on positive definite and indefinite K."""
+    ev = np.r_[-np.linspace(1.0, 2.0, negative), np.linspace(0.01, 10, 40 - negative)]
+    A = random_symmetric(40, ev, seed=7)
+    D = np.diag(np.linspace(1.0, 3.0, 40))
+    g = np.random.default_rng(8).standard_normal(40)
+    solve = lambda r: np.linalg.solve(D, r)
+    path = CGPath()
+    p0, info0 = steihaug_cg(lambda v: A @ v, g, solve, 5.0, 1e-12, 200, None, path)
+    assert info0["iterations"] == len(path.entries) >= 2
+    radius = info0["norm_M"]
+    for _ in range(4):                          # successive rejections: half the step each time
+        radius *= 0.5
+        p, info = path.step(radius)
+        q, ref = steihaug_cg(lambda v: A @ v, g, solve, radius, 1e-12, 200)
+        assert info["iterations"] == 0 and info["reason"] == ref["reason"]
+        np.testing.assert_allclose(p, q, rtol=1e-12, atol=1e-14 * np.abs(q).max())
+        assert np.sqrt(p @ D @ p) == pytest.approx(radius, rel=1e-10)
+    # positive definite K solved inside the region: the whole path is inside
+    # any radius that contains the Newton step, nothing to replay
+    if negative == 0:
+        path = CGPath()
+        p0, info0 = steihaug_cg(lambda v: A @ v, g, solve, 1e6, 1e-12, 200, None, path)
+        assert info0["reason"] == "converged"
+        assert path.step(2 * info0["norm_M"]) is None
 
 
 def test_indefinite_preconditioner_is_refused():

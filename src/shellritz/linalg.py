@@ -407,7 +407,7 @@ def negative_eigenvalues(K, method="auto"):
 
 
 # -------------------------------------------------------------- Krylov: CG
-def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, project=None):
+def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, project=None, path=None):
     """Approximate minimizer of the model m(p) = g.p + p.K p / 2 with
     ||p||_M <= radius by preconditioned conjugate gradients (Steihaug 1983,
     Toint 1981; Conn, Gould & Toint, Trust-Region Methods, alg. 7.5.1, with
@@ -423,6 +423,10 @@ def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, proj
     curvature.  With radius = inf (truncated Newton for a line search) a
     negative curvature direction met in the first iteration is returned as is
     (-M^-1 g: a descent direction), later ones end the iteration.
+
+    path: a :class:`CGPath` that records the iteration (directions, step
+    lengths, M-norm recurrences), so that the same model can be solved at a
+    smaller radius without new iterations.
 
     Returns (p, info) with info = dict(iterations, reason in {"converged",
     "boundary", "negative curvature", "maxiter"}, norm_M (of p),
@@ -444,6 +448,8 @@ def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, proj
     for it in range(1, maxiter + 1):
         Kd = matvec(d)
         dKd = d @ Kd
+        if path is not None:
+            path.add(d, rz / dKd if dKd > 0.0 else None, pMp, pMd, dMd)
         if dKd <= 0.0:
             if np.isfinite(radius):
                 p += _to_boundary(pMp, pMd, dMd, radius) * d
@@ -479,6 +485,40 @@ def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, proj
         dMd = rz + beta * beta * dMd
         d = z + beta * d
     return p, dict(iterations=maxiter, reason="maxiter", norm_M=np.sqrt(max(pMp, 0.0)), curvature=None)
+
+
+class CGPath:
+    """The iterations of one Steihaug CG solve.  The CG sequence does not
+    depend on the radius: the iterates' M-norms grow monotonically (Steihaug
+    1983, thm 2.1), and the solution at a smaller radius is where the same
+    path first leaves it.  After a rejected trust-region step the model
+    (g, K, M) is unchanged, so :meth:`step` gives the new step without CG
+    iterations.  At most ``limit`` directions are kept (memory: one vector
+    each)."""
+
+    def __init__(self, limit=50):
+        self.limit = limit
+        self.entries = []           # (d, alpha or None at negative curvature, pMp, pMd, dMd)
+
+    def add(self, d, alpha, pMp, pMd, dMd):
+        if len(self.entries) < self.limit:
+            self.entries.append((d.copy(), alpha, pMp, pMd, dMd))
+
+    def step(self, radius):
+        """(p, info) of steihaug_cg at ``radius`` (0 iterations), or None
+        where the recorded path stays inside it."""
+        if not self.entries:
+            return None
+        p = np.zeros_like(self.entries[0][0])
+        for d, alpha, pMp, pMd, dMd in self.entries:
+            if alpha is None:
+                p += _to_boundary(pMp, pMd, dMd, radius) * d
+                return p, dict(iterations=0, reason="negative curvature", norm_M=radius, curvature=None)
+            if pMp + 2 * alpha * pMd + alpha * alpha * dMd >= radius * radius:
+                p += _to_boundary(pMp, pMd, dMd, radius) * d
+                return p, dict(iterations=0, reason="boundary", norm_M=radius, curvature=None)
+            p += alpha * d
+        return None
 
 
 def _to_boundary(pMp, pMd, dMd, radius):

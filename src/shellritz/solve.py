@@ -39,7 +39,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .linalg import (LinearSolverError, jacobi, lower_matvec, make_linear_solver, resolve_method,
+from .linalg import (CGPath, LinearSolverError, jacobi, lower_matvec, make_linear_solver, resolve_method,
                      free_rigid_modes, projector, steihaug_cg)
 
 GLOBALIZATIONS = ("trust-region", "line-search")
@@ -261,6 +261,7 @@ def minimize(problem, t, opts, history, g_ref, lin):
     # when it is accepted) unless a rejection is likely: after a rejection,
     # and for the first step at a radius just doubled
     hessian_with_trial = True
+    cg_path = replay = None     # the CG path of the model at x; set after a rejection
     # watchdog (Chamberlain et al. 1982): full Newton steps are taken even
     # uphill in energy (a large rotation predicted by the linearization
     # stretches the membrane: the step overshoots in energy but lands in the
@@ -298,9 +299,19 @@ def minimize(problem, t, opts, history, g_ref, lin):
             r = np.sqrt(max(-(g @ lin.preconditioner(K)(-g)), 0.0)) or 1.0
         else:
             r = radius if trust else np.inf
+        # after a rejected step the model at x is the same: the step at the
+        # smaller radius comes from the recorded CG path, without iterations
+        replayed = replay.step(r) if replay is not None else None
+        replay = None
         try:
-            p, info = steihaug_cg(matvec, g, lin.preconditioner(K), r, eta, opts.max_cg, lin.project)
+            if replayed is not None:
+                p, info = replayed
+            else:
+                cg_path = CGPath() if trust and lin.direct and np.isfinite(r) else None
+                p, info = steihaug_cg(matvec, g, lin.preconditioner(K), r, eta, opts.max_cg, lin.project,
+                                      cg_path)
         except LinearSolverError as exc:
+            cg_path = None
             if not lin.direct and lin.solver.restore_previous():
                 history.notes.append(f"t={t:.4g} it={it}: rebuilt AMG hierarchy not SPD ({exc}); "
                                      "previous hierarchy restored")
@@ -385,6 +396,7 @@ def minimize(problem, t, opts, history, g_ref, lin):
             if not accepted:
                 problem.restore_point(saved)
                 radius = TRUST_SHRINK * info["norm_M"]
+                replay = cg_path
             elif ratio_good and info["reason"] in ("boundary", "negative curvature"):
                 radius = 2.0 * info["norm_M"]
                 hessian_with_trial = False
