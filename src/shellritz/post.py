@@ -32,7 +32,7 @@ from numba import njit
 from .discretize.dkt import apply_map, element_chart, gather_element, point_map
 from .kernels.material import V_P, mat_prepare, new_state
 from .kernels.point import _reference_geometry
-from .kernels.small import det3, inv3
+from .kernels.small import det3, inv3, mm3
 
 
 @njit(cache=True)
@@ -67,9 +67,7 @@ def _fields(kind, psi, params, tri, X, T, U, bary, wts, Y1, G0n, F_out, P_out, S
                                + lam[2] * G0n[tri[e, 2], i, j])
             # A = F G^-1, P = det(G) dW/dA G^-T, sigma = P F^T / det(F)
             detG = inv3(G, Gi)
-            for i in range(3):
-                for j in range(3):
-                    A[i, j] = F[i, 0] * Gi[0, j] + F[i, 1] * Gi[1, j] + F[i, 2] * Gi[2, j]
+            mm3(F, Gi, A)
             mat_prepare(kind, psi, params, A, mv, mm, mp)
             PA = mv[V_P]
             for i in range(3):

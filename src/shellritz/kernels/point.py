@@ -47,7 +47,7 @@ from . import KERNEL
 from .parallel import run_chunks
 from .material import (M_AA, S_W, V_P, mat_combination, mat_d3, mat_d3_vec,
                        mat_prepare, new_state)
-from .small import chol3, chol3_inverse, chol3_solve, cross, det3, inv3, mv3
+from .small import chol3, chol3_inverse, chol3_solve, cross, det3, inv3, mm3, mv3
 
 LEVEL_MEMBRANE = 0
 LEVEL_BENDING = 1
@@ -216,13 +216,6 @@ def _to_local(X, E, out):
                 for q in range(3):
                     s += E[p, I] * X[p, q] * E[q, J]
             out[I, J] = s
-
-
-@njit(**KERNEL, inline="always")
-def _mm(a, b, out):
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
 @njit(**KERNEL, inline="always")
@@ -450,8 +443,8 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     g0 = inv3(G0L, Gi)
     if not g0 > 0.0:
         return nan, ERR_GROWTH
-    _mm(Gi, G1L, M1)
-    _mm(G1L, Gi, N1)
+    mm3(Gi, G1L, M1)
+    mm3(G1L, Gi, N1)
     t1 = M1[0, 0] + M1[1, 1] + M1[2, 2]
     t2 = 0.0
     for i in range(3):
@@ -461,7 +454,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     t1a = sv[5]
     for a in range(2):
         _to_local(dG0[a], E, wk)
-        _mm(Gi, wk, gr[5 + a])
+        mm3(Gi, wk, gr[5 + a])
         t1a[a] = gr[5 + a][0, 0] + gr[5 + a][1, 1] + gr[5 + a][2, 2]
 
     bend = level >= LEVEL_BENDING
@@ -604,7 +597,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
 
     # X = A1 Q1 + A0 Q0 (all directions along which DW is taken linearly)
     Q1, Q0, Kk = gr[7], gr[8], gr[9]
-    _mm(kap, Gi, Kk)             # kappa Gi
+    mm3(kap, Gi, Kk)             # kappa Gi
     for I in range(3):
         for J in range(3):
             gk = G0L[I, 0] * Kk[0, J] + G0L[I, 1] * Kk[1, J] + G0L[I, 2] * Kk[2, J]

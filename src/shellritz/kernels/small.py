@@ -113,6 +113,14 @@ def chol3_inverse(lo, out):
 
 
 @njit(**KERNEL, inline="always")
+def mm3(a, b, out):
+    """out = a b for 3x3 matrices (out must not alias a or b)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@njit(**KERNEL, inline="always")
 def mv3(a, x, out):
     """out = a x for a 3x3 matrix (x may alias out)."""
     x0, x1, x2 = x[0], x[1], x[2]
