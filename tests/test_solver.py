@@ -103,6 +103,22 @@ def test_direct_methods_take_the_same_newton_path():
     assert np.abs(runs[0].r - runs[1].r).max() <= 1e-8
 
 
+def test_trust_region_does_not_expand_right_after_a_rejection():
+    """On the buckling leaf the model holds up to a radius r and fails at 2r
+    (a rejection, then the step at r from the CG path is excellent, ratio
+    ~1).  Doubling again at once repeated the rejection: the radius stays
+    after a step that follows a rejection.  16-ring leaf: 17 Newton
+    iterations with 3 rejected (18 with 4 before; 12k triangles: 18 with 3
+    against 20 with 5, bench/scaling.py)."""
+    h = leaf(16).solve(verbose=False).history
+    its = h.iterations
+    after = [(a, b) for a, b in zip(its, its[1:]) if not a.accepted and b.accepted and np.isfinite(b.radius)]
+    assert after                                              # the situation does arise
+    assert all(b.radius <= a.radius for a, b in after)
+    assert sum(not it.accepted for it in its) <= 3 and len(its) <= 17
+    assert h.stable
+
+
 # ------------------------------------------------------------------- AMG
 def test_amg_gives_the_direct_solution_and_falls_back_when_cg_stalls(cantilever_default):
     res, tip = cantilever_default
