@@ -261,7 +261,6 @@ def minimize(problem, t, opts, history, g_ref, lin):
     # when it is accepted) unless a rejection is likely: after a rejection,
     # and for the first step at a radius just doubled
     hessian_with_trial = True
-    after_rejection = False     # the step at x follows a rejected one (no expansion then)
     cg_path = replay = None     # the CG path of the model at x; set after a rejection
     # watchdog (Chamberlain et al. 1982): full Newton steps are taken even
     # uphill in energy (a large rotation predicted by the linearization
@@ -390,8 +389,9 @@ def minimize(problem, t, opts, history, g_ref, lin):
                                                with_hessian=hessian_with_trial)
             alpha = 1.0
             hessian_with_trial = accepted
-            expand = not after_rejection        # twice the radius has just failed
-            after_rejection = not accepted
+            # no expansion for a step read off the CG path of a rejected one:
+            # the same model along the same path has just failed at twice its radius
+            expand = replayed is None
             ratio_good = accepted and (En is None or E - En >= 0.75 * predicted)
             if not accepted and newton_step and abs(predicted) <= noise(E) and En is not None:
                 problem.restore_point(saved)

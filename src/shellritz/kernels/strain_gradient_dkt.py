@@ -450,11 +450,11 @@ def _add_elements(lo, hi, mode, C, active, tri, X, T, U, G0n, bary, wts, order, 
 # of opposite vertices to the pattern).
 
 @njit(**KERNEL)
-def _edge_side(e, lam, frame, tri, X, T, U, G0n, mode, wk):
-    """Projected first covariant derivatives (8) of the strain of triangle e at
-    lam, into val[:8] / dval[:8] of wk; chi[:8] keeps their combination."""
+def _edge_side(e, lam, frame, tri, G0n, mode, wk):
+    """Projected first covariant derivatives (8) of the strain of triangle e
+    (loaded into wk) at lam, into val[:8] / dval[:8] of wk; chi[:8] keeps
+    their combination."""
     gup, k1, chi = wk[36], wk[38], wk[40]
-    _load_element(e, tri, X, T, U, wk)
     _blocks(e, lam, tri, G0n, mode, False, wk)
     _kappa1(wk)
     for t in range(8):
@@ -495,9 +495,11 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
             for q in range(36):
                 Hn[p, q] = 0.0
     RE = 0.0
+    _load_element(edge_tri[j, 0], tri, X, T, U, wA)
+    _load_element(edge_tri[j, 1], tri, X, T, U, wB)
     for g in range(edge_lam.shape[2]):
-        _edge_side(edge_tri[j, 0], edge_lam[j, 0, g], edge_frame[j], tri, X, T, U, G0n, mode, wA)
-        _edge_side(edge_tri[j, 1], edge_lam[j, 1, g], edge_frame[j], tri, X, T, U, G0n, mode, wB)
+        _edge_side(edge_tri[j, 0], edge_lam[j, 0, g], edge_frame[j], tri, G0n, mode, wA)
+        _edge_side(edge_tri[j, 1], edge_lam[j, 1, g], edge_frame[j], tri, G0n, mode, wB)
         w = C * edge_w[j, g]
         for t in range(8):
             J[t] = wA[41][t] - wB[41][t]
