@@ -121,6 +121,25 @@ def test_trust_region_does_not_expand_right_after_a_rejection():
     assert h.stable
 
 
+def test_slow_newton_on_a_too_large_load_step_cuts_the_step_early(monkeypatch):
+    """Very thin clamped panel (h/R = 1e-3) loaded in one step: after the
+    first full Newton steps the Hessian is positive definite and the Newton
+    steps are good (ratio ~1) but short, creeping along the curved
+    inextensional valley, so |g| does not fall; 40 such iterations were spent
+    before each cut of the load step.  Giving up after SLOW_NEWTON = 10 of
+    them: 12 x 12 panel 84 instead of 165 Newton iterations (16 x 16, the
+    stability map: 129 instead of 237), the same equilibrium."""
+    from shellritz import solve as solve_module
+    from shellritz.benchmark_scenes import thin_panel
+    early = thin_panel(12).solve(verbose=False)
+    monkeypatch.setattr(solve_module, "SLOW_NEWTON", 10 ** 9)
+    late = thin_panel(12).solve(verbose=False)
+    assert sum(not ok for _, ok in early.history.steps) >= 1     # the step is cut
+    assert len(early.history.iterations) <= 0.6 * len(late.history.iterations)
+    assert early.energy == pytest.approx(late.energy, rel=1e-10)
+    assert early.history.stable and late.history.stable
+
+
 # ------------------------------------------------------------------- AMG
 def test_amg_gives_the_direct_solution_and_falls_back_when_cg_stalls(cantilever_default):
     res, tip = cantilever_default

@@ -226,11 +226,19 @@ def _forcing(opts, exact, gnorm, gnorm_prev, eta_prev):
 # rejected one, the last accepted radius, is usually accepted; measured:
 # 12k-triangle leaf 22 -> 20 Newton iterations, 20 -> 17 factorizations)
 TRUST_SHRINK = 0.5
+# a load step whose Newton iterations on positive definite Hessians have not
+# reduced |g| a hundredfold after SLOW_NEWTON of them is too large: Newton
+# creeps along a curved valley (a very thin shell's inextensional path) with
+# good but short steps, where a smaller step converges in a few iterations
+# (thin panel h/R = 1e-3: 237 -> 129 Newton iterations, stability map)
+SLOW_NEWTON = 10
 
 
-def minimize(problem, t, opts, history, g_ref, lin):
+def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
     """Newton iterations at fixed t from the current state.  Returns the
-    Hessian (lower CSR) at the equilibrium reached, or None on failure."""
+    Hessian (lower CSR) at the equilibrium reached, or None on failure.
+    ``may_cut``: the caller can retry with a smaller load step, so a step on
+    which Newton converges only slowly is given up early (SLOW_NEWTON)."""
     x = problem.free_state()
     try:
         E, g, K = problem.evaluate(x, 2)
@@ -270,6 +278,8 @@ def minimize(problem, t, opts, history, g_ref, lin):
     # returns there and globalizes (once per call)
     watch = None                # the last monotone point while on probation
     watch_spent = opts.watchdog <= 0
+    pd_since = None             # |g| at the first of the current run of positive definite Hessians
+    pd_run = 0
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= opts.xtol * size:
@@ -288,6 +298,12 @@ def minimize(problem, t, opts, history, g_ref, lin):
             negative, setup = lin.factorize(K)
             factorized = True
         exact = lin.solver.current_is_positive_definite()
+        pd_run, pd_since = (pd_run + 1, pd_since or gnorm) if exact else (0, None)
+        if may_cut and pd_run > SLOW_NEWTON and gnorm > 1e-2 * pd_since:
+            if opts.verbose:
+                print(f"    t={t:.4f}: Newton converges slowly on positive definite Hessians "
+                      f"(|g| {gnorm:.3e} after {SLOW_NEWTON} steps from {pd_since:.3e}): smaller step")
+            return None
         matvec = lower_matvec(K)
         eta = _forcing(opts, exact, gnorm, gnorm_prev, eta)
         ts = time.perf_counter()
@@ -601,10 +617,10 @@ def escape_along(problem, mode, t, opts, history):
     return False
 
 
-def equilibrium(problem, t, opts, history, g_ref, lin):
+def equilibrium(problem, t, opts, history, g_ref, lin, may_cut=False):
     """Minimize at t; assess stability; leave unstable states (opts.escape)."""
     for _ in range(opts.max_escapes + 1):
-        K = minimize(problem, t, opts, history, g_ref, lin)
+        K = minimize(problem, t, opts, history, g_ref, lin, may_cut)
         if K is None:
             return False
         mode = assess_stability(problem, K, opts, history, lin, t)
@@ -660,7 +676,8 @@ def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0):
         if opts.verbose:
             print(f"  step t = {t_new:.4f} (dt = {dt:.4f})", flush=True)
         n_before = len(history.iterations)
-        ok = equilibrium(problem, t_new, opts, history, max(g_ref, problem.load_scale()), lin)
+        ok = equilibrium(problem, t_new, opts, history, max(g_ref, problem.load_scale()), lin,
+                         may_cut=0.5 * dt >= min_dt)
         history.steps.append((t_new, ok))
         if ok:
             prev = (t, x_now)
@@ -868,8 +885,8 @@ class Solvable:
         """Equilibrium at t = 1 by continuation from the reference (t = 0).
 
         steps: initial number of continuation steps (adapted: halved on
-        failure, doubled after easy steps; arc length: the first arc step is
-        1/steps); min_dt: smallest step before giving up; monitor: node
+        failure or when Newton creeps, SLOW_NEWTON; doubled after easy
+        steps; arc length: the first arc step is 1/steps); min_dt: smallest step before giving up; monitor: node
         indices whose positions are recorded along an arc-length path, or a
         callable(engine) -> numbers.  Solver options (SolverOptions, with
         their defaults and meaning): rtol (relative gradient tolerance),
