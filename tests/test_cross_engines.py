@@ -98,7 +98,12 @@ def test_invagination_axisymmetric_engine_converges_at_fourth_order():
         assert d[1] < bound and d[0] / d[1] > ratio, (term, d)
 
 
-@pytest.mark.parametrize("sizes, ratio", [((16, 32), 2.8), pytest.param((32, 64), 3.6, marks=pytest.mark.slow)])
+# Observed: 0.061, 0.0193, 0.00542 at n = 16, 32, 64 (ratios 3.2, 3.56).  At
+# n = 64 the triangles are finer than the thickness and carry the h^5
+# strain-gradient term of issue 14 (strain_gradient.py), whose DKT form (an
+# interior penalty on the jumps of grad e) moves this meridian by 7e-4;
+# without it 0.00474 (ratio 4.07).
+@pytest.mark.parametrize("sizes, ratio", [((16, 32), 2.8), pytest.param((32, 64), 3.4, marks=pytest.mark.slow)])
 def test_invagination_triangles_converge_to_the_axisymmetric_meridian(sizes, ratio):
     scene = invagination()
     ref = scene.solve("axisym", n=128, steps=8)
