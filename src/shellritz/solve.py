@@ -886,9 +886,9 @@ class Solvable:
 
         steps: initial number of continuation steps (adapted: halved on
         failure or when Newton creeps, SLOW_NEWTON; doubled after easy
-        steps; arc length: the first arc step is 1/steps); min_dt: smallest step before giving up; monitor: node
-        indices whose positions are recorded along an arc-length path, or a
-        callable(engine) -> numbers.  Solver options (SolverOptions, with
+        steps; arc length: the first arc step is 1/steps); min_dt: smallest
+        step before giving up; monitor: node indices whose positions are
+        recorded along an arc-length path, or a callable(engine) -> numbers.  Solver options (SolverOptions, with
         their defaults and meaning): rtol (relative gradient tolerance),
         max_iter (Newton iterations per step), linear ("auto" | "pardiso" |
         "superlu" | "amg", linalg.py), globalization ("trust-region" |
