@@ -45,7 +45,7 @@ import numba as nb
 import numpy as np
 from numba.core.ccallback import CFunc
 
-from .kernels.material import (COMPACT_INDEX, KIND_INVARIANT, KIND_LINEAR,
+from .kernels.material import (COMPACT_INDEX, KIND_INVARIANT, KIND_LINEAR, KIND_SVK,
                                M_AA, N_PSI, PSI_SIGNATURE, S_W, V_P, mat_d3,
                                mat_d4, mat_prepare, new_state)
 
@@ -155,18 +155,6 @@ def _psi_neo_hookean(I1, I2, J, par, out):
     out[9] = C / (J * J) + D                  # d2/dJ2
     out[19] = -2.0 * C / J ** 3               # d3/dJ3
     out[34] = 6.0 * C / J ** 4                # d4/dJ4
-
-
-def _psi_svk(I1, I2, J, par, out):
-    lam = par[0]
-    mu = par[1]
-    for n in range(35):
-        out[n] = 0.0
-    # W = mu/4 (I1^2 - 2 I2 - 2 I1 + 3) + lam/8 (I1 - 3)^2
-    out[0] = 0.25 * mu * (I1 * I1 - 2.0 * I2 - 2.0 * I1 + 3.0) + 0.125 * lam * (I1 - 3.0) ** 2
-    out[1] = 0.25 * mu * (2.0 * I1 - 2.0) + 0.25 * lam * (I1 - 3.0)
-    out[2] = -0.5 * mu
-    out[4] = 0.5 * mu + 0.25 * lam
 
 
 def _psi_zero(I1, I2, J, par, out):
@@ -426,13 +414,16 @@ def _young_to_lame(name, E, nu):
 
 
 class StVenantKirchhoff(Law):
-    """``W = mu tr E^2 + lambda/2 (tr E)^2`` with Lame constants (lam, mu)."""
+    """``W = mu tr E^2 + lambda/2 (tr E)^2`` with Lame constants (lam, mu),
+    ``E = (A^T A - I)/2``; evaluated in closed form (kernels/material.py,
+    KIND_SVK), not through psi(I1, I2)."""
 
     name = "Saint Venant-Kirchhoff"
+    kind = KIND_SVK
 
     def __init__(self, lam, mu):
         _lame("StVenantKirchhoff", lam, mu)
-        super().__init__((lam, mu), _cfunc(_psi_svk))
+        super().__init__((lam, mu), _cfunc(_psi_zero))
 
     @classmethod
     def from_young(cls, E, nu):

@@ -25,6 +25,20 @@ with the exact multilinear forms of the three invariants (``I1`` quadratic,
 ``W = lambda/2 (tr H)^2 + mu |sym H|^2`` with ``H = A - I``: constant tangent,
 zero third and fourth derivatives.
 
+``KIND_SVK``: Saint Venant-Kirchhoff, ``W = lambda/2 (tr E)^2 + mu E:E`` with
+``E = (A^T A - I)/2``, in closed form (the same W as the invariant form
+psi(I1, I2), at a fraction of the cost: no I2 algebra).  With the isotropic
+elasticity C4[X, Y] = lambda tr X tr Y + 2 mu X:Y, S = C4[E] and
+dE[a] = sym(A^T a), d2E[a, b] = sym(a^T b):
+
+    D2W[a, b]       = S:(a^T b) + C4[sym(A^T a), sym(A^T b)]
+    D3W[a, b, c]    = sum over the 3 splits {a, b | c}: C4[sym(a^T b), sym(A^T c)]
+    D4W[a, b, c, d] = sum over the 3 splits {a, b | c, d}: C4[sym(a^T b), sym(c^T d)]
+
+As bilinear forms in (a, b) every term is a block delta_ik S'[J, L] (a_iJ b_kL)
+or a pair C4[sym(a^T x), sym(b^T y)] = lam x_iJ y_kL + mu (delta_JL (x y^T)_ik
++ x_iL y_kJ), see _svk_combination.
+
 State layout
 ------------
 One evaluation lives in three arrays ``(mv, mm, mp)`` (few arguments keep
@@ -46,6 +60,7 @@ from . import KERNEL
 
 KIND_INVARIANT = 0
 KIND_LINEAR = 1
+KIND_SVK = 2
 
 # Signature of a law callback: psi(I1, I2, J, params*, out*) writes the 35
 # distinct partial derivatives of psi of order 0..4 in the compact order of
@@ -143,7 +158,8 @@ V_G = 4                                    # 3 rows: D I_a (active order)
 V_QC, V_QD, V_RCD, V_U, V_RD = 7, 10, 13, 16, 19   # 3 rows each (work)
 V_ZS, V_QS = 22, 34                        # 4 pairs x 3 rows (work)
 V_PC, V_PD = 46, 47                        # one pair (mat_d4)
-N_VROW = 48
+V_S = 48                                   # KIND_SVK: S = lam tr E I + 2 mu E
+N_VROW = 49
 M_AA = 3                                   # mm[0:3] = Q_a, mm[3] = AA
 # entries of mp
 S_W, S_I1, S_I2, S_J, S_NK, S_KIND = 0, 1, 2, 3, 4, 5
@@ -157,7 +173,8 @@ S_GD = S_GC + 3
 S_SIG = S_GD + 3
 S_AL = S_SIG + 3
 S_WT = S_AL + 3                            # one pair weight (mat_d4)
-N_SCAL = S_WT + 1
+S_LAM, S_MU = S_WT + 1, S_WT + 2           # KIND_SVK: Lame constants
+N_SCAL = S_WT + 3
 
 
 @njit(cache=True)
@@ -367,6 +384,30 @@ def mat_prepare(kind, psi, params, A, mv, mm, mp):
                 AA[3 * i + j, 3 * i + j] += mu
                 AA[3 * i + j, 3 * j + i] += mu
         return 0
+    if kind == KIND_SVK:
+        lam = params[0]
+        mu = params[1]
+        mp[S_LAM] = lam
+        mp[S_MU] = mu
+        mp[S_NK] = 0
+        S = mv[V_S]
+        trE = 0.0
+        EE = 0.0
+        for J in range(3):
+            for L in range(3):
+                e = 0.5 * (A[0, J] * A[0, L] + A[1, J] * A[1, L] + A[2, J] * A[2, L]
+                           - (1.0 if J == L else 0.0))
+                S[3 * J + L] = 2.0 * mu * e
+                EE += e * e
+            trE += 0.5 * (A[0, J] * A[0, J] + A[1, J] * A[1, J] + A[2, J] * A[2, J] - 1.0)
+        for J in range(3):
+            S[4 * J] += lam * trE
+        mp[S_W] = 0.5 * lam * trE * trE + mu * EE
+        for i in range(3):
+            for J in range(3):
+                P[3 * i + J] = A[i, 0] * S[J] + A[i, 1] * S[3 + J] + A[i, 2] * S[6 + J]
+        _svk_combination(mv, mp, 1.0, A9[0:0], mv[0:0], mv[0:0], mp[0:0], AA)
+        return 0
     Cm = mv[V_C]
     I1 = 0.0
     for i in range(3):
@@ -463,6 +504,9 @@ def mat_combination(mv, mm, mp, cAA, c3, C, Dd, wts, out):
         for p in range(9):
             for q in range(9):
                 out[p, q] = cAA * mm[M_AA, p, q]
+        return
+    if mp[S_KIND] == KIND_SVK:
+        _svk_combination(mv, mp, cAA, c3, C, Dd, wts, out)
         return
     # nk as a literal: one specialization of _combination per number of invariants
     if mp[S_NK] == 3:
@@ -577,6 +621,56 @@ def _combination(nk, mv, mm, mp, cAA, c3, C, Dd, wts, out):
 
 
 @njit(**KERNEL)
+def _svk_combination(mv, mp, cAA, c3, C, Dd, wts, out):
+    """mat_combination for KIND_SVK (module docstring).  The pairs (x, y, coef)
+    are (A, A, cAA) for AA, (c3, A, 1) and (A, c3, 1) for D3(c3), (c, d, w) and
+    (d, c, w) for each D4 term; with Z = sum coef x (x) y (9x9, symmetric) and
+    Z1 its part without (A, A):
+
+      out[(i,J), (k,L)] = delta_ik Sb[J, L] + lam Z[iJ, kL] + mu Z[iL, kJ]
+                          + mu delta_JL sum_M Z[iM, kM],
+      Sb = cAA S + (lam/2) tr(Z1) I + mu sum_i Z1[i., i.]   (the delta_ik terms)."""
+    lam, mu = mp[S_LAM], mp[S_MU]
+    A9, S = mv[V_A], mv[V_S]
+    Z = mv[V_ZS:V_ZS + 9]        # 9 work rows
+    Sb = mv[V_QS]
+    for p in range(9):
+        for q in range(9):
+            Z[p, q] = 0.0
+    if c3.shape[0] > 0:
+        for p in range(9):
+            for q in range(9):
+                Z[p, q] += c3[p] * A9[q] + A9[p] * c3[q]
+    for pr in range(wts.shape[0]):
+        w = wts[pr]
+        c = C[pr]
+        d = Dd[pr]
+        for p in range(9):
+            for q in range(9):
+                Z[p, q] += w * (c[p] * d[q] + d[p] * c[q])
+    tr = Z[0, 0] + Z[1, 1] + Z[2, 2] + Z[3, 3] + Z[4, 4] + Z[5, 5] + Z[6, 6] + Z[7, 7] + Z[8, 8]
+    for J in range(3):
+        for L in range(3):
+            Sb[3 * J + L] = (cAA * S[3 * J + L]
+                             + mu * (Z[J, L] + Z[3 + J, 3 + L] + Z[6 + J, 6 + L]))
+        Sb[4 * J] += 0.5 * lam * tr
+    for p in range(9):
+        for q in range(9):
+            Z[p, q] += cAA * A9[p] * A9[q]
+    for i in range(3):
+        for k in range(3):
+            n = mu * (Z[3 * i, 3 * k] + Z[3 * i + 1, 3 * k + 1] + Z[3 * i + 2, 3 * k + 2])
+            for J in range(3):
+                for L in range(3):
+                    v = lam * Z[3 * i + J, 3 * k + L] + mu * Z[3 * i + L, 3 * k + J]
+                    if J == L:
+                        v += n
+                    if i == k:
+                        v += Sb[3 * J + L]
+                    out[3 * i + J, 3 * k + L] = v
+
+
+@njit(**KERNEL)
 def mat_d3(mv, mm, mp, c, out):
     """out = D3W[., ., c] (9x9). Requires mat_prepare on the same A."""
     mat_combination(mv, mm, mp, 0.0, c, mv[0:0], mv[0:0], mp[0:0], out)
@@ -602,10 +696,51 @@ def mat_d3_vec(mv, mm, mp, c, d, out):
         out[p] = 0.0
     if mp[S_KIND] == KIND_LINEAR:
         return
+    if mp[S_KIND] == KIND_SVK:
+        _svk_d3_vec(mv, mp, c, d, out)
+        return
     if mp[S_NK] == 3:          # nk as a literal: one specialization per number of invariants
         _d3_vec(3, mv, mm, mp, c, d, out)
     else:
         _d3_vec(2, mv, mm, mp, c, d, out)
+
+
+@njit(**KERNEL)
+def _svk_d3_vec(mv, mp, c, d, out):
+    """mat_d3_vec for KIND_SVK: out = c S_d + d S_c + A S_cd with
+    S_x = lam (A:x) I + mu (A^T x + x^T A), S_cd = lam (c:d) I + mu (c^T d + d^T c)."""
+    lam, mu = mp[S_LAM], mp[S_MU]
+    A9 = mv[V_A]
+    Sx = mv[V_QC:V_QC + 3]       # rows: S_c, S_d, S_cd (3x3 flattened)
+    ac = 0.0
+    ad = 0.0
+    cd = 0.0
+    for p in range(9):
+        ac += A9[p] * c[p]
+        ad += A9[p] * d[p]
+        cd += c[p] * d[p]
+    for J in range(3):
+        for L in range(3):
+            tc = 0.0
+            td = 0.0
+            tcd = 0.0
+            for i in range(3):
+                tc += A9[3 * i + J] * c[3 * i + L] + c[3 * i + J] * A9[3 * i + L]
+                td += A9[3 * i + J] * d[3 * i + L] + d[3 * i + J] * A9[3 * i + L]
+                tcd += c[3 * i + J] * d[3 * i + L] + d[3 * i + J] * c[3 * i + L]
+            Sx[0, 3 * J + L] = mu * tc
+            Sx[1, 3 * J + L] = mu * td
+            Sx[2, 3 * J + L] = mu * tcd
+        Sx[0, 4 * J] += lam * ac
+        Sx[1, 4 * J] += lam * ad
+        Sx[2, 4 * J] += lam * cd
+    for i in range(3):
+        for J in range(3):
+            s = 0.0
+            for L in range(3):
+                s += (c[3 * i + L] * Sx[1, 3 * L + J] + d[3 * i + L] * Sx[0, 3 * L + J]
+                      + A9[3 * i + L] * Sx[2, 3 * L + J])
+            out[3 * i + J] = s
 
 
 @njit(**KERNEL)
