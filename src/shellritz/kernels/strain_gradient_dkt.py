@@ -36,6 +36,10 @@ from .assembly import scatter_element, zero_element
 
 NP1 = 9           # blocks P0 (3) and P1 (6): first covariant derivatives
 NP2 = 18          # and P2 (9): second
+N_PRODUCTS = 51   # products u.v making the blocks: 3 (P0) + 12 (P1) + 36 (P2)
+N_BASIS = 11      # coefficient rows of u, v: b[0:5] (r_a, r_ab), D3[p, c] (r_abc)
+N_T = 12          # distinct orthonormal components of grad grad e (element_strain_gradient)
+SQRT2 = np.sqrt(2.0)
 
 
 @njit(**KERNEL, inline="always")
@@ -90,11 +94,13 @@ def _work():
             np.zeros((3, 2, 3)), np.zeros((3, 2, 3)), np.zeros((3, 2, 3)), np.zeros((3, 2, 3)),  # 19-22 3rd derivs
             np.zeros((3, 3)), np.zeros((2, 3, 3)),                                          # 23-24 G dG
             np.zeros((2, 3)), np.zeros((2, 2, 3)), np.zeros((2, 2, 2, 3)), np.zeros(3),     # 25-28 u du ddu tmp
-            np.zeros(NP2), np.zeros((NP2, 9, 3)), np.zeros((NP2, 9, 9)),                    # 29-31 P dP M
+            np.zeros(NP2), np.zeros((NP2, 9, 3)), np.zeros((N_BASIS, N_BASIS)),             # 29-31 P dP Wt
             np.zeros((2, 2)), np.zeros((2, 2, 2)), np.zeros((2, 2, 2, 2)), np.zeros((2, 2)),  # 32-35 Ainv Gam dGam L
             np.zeros((2, 3)), np.zeros((2, 2)),                                             # 36-37 g^a, dA^-1
             np.zeros((2, 2, 2, NP2)), np.zeros(NP2), np.zeros((16, NP2)),                   # 38-40 k1 k2 chi
-            np.zeros(16), np.zeros((16, 9, 3)), np.zeros((9, 9)))                           # 41-43 val dval Mw
+            np.zeros(16), np.zeros((16, 9, 3)), np.zeros((9, 9)),                           # 41-43 val dval Mw
+            np.zeros((N_PRODUCTS, 3), np.int64), np.zeros(1, np.int64),                     # 44-45 products
+            np.zeros(NP2), np.zeros((N_BASIS, 9)), np.zeros((N_BASIS, 9)))                  # 46-48 om Bas T
 
 
 @njit(**KERNEL)
@@ -131,20 +137,31 @@ def _third_derivative_map(wk):
 
 
 @njit(**KERNEL)
-def _product(wk, idx, cu, cv, ud, us, uc, uR, vd, vs, vc, vR, ug, vg, mode):
-    """Block idx += u.v for two linear maps with coefficient rows cu, cv (their
-    vectors of X - Xref (d), X + Xref (s), X (c), Xref (R)) less the growth
-    part ug.vg - uR.vR; gradient cu (x) v + cv (x) u; M += (cu cv^T + cv cu^T)/2."""
-    P, dP, M = wk[29], wk[30], wk[31]
+def _product(wk, idx, iu, iv, cu, cv, ud, us, uc, uR, vd, vs, vc, vR, ug, vg, mode):
+    """Block idx += u.v for two linear maps with coefficient rows cu, cv (basis
+    rows iu, iv, see _basis_row; their vectors of X - Xref (d), X + Xref (s),
+    X (c), Xref (R)) less the growth part ug.vg - uR.vR; gradient
+    cu (x) v + cv (x) u.  The second derivative, M_idx += (cu cv^T + cv cu^T)/2
+    (x) I3, is not formed: the product is listed and _weighted_M sums the
+    weighted M_idx at once."""
+    P, dP = wk[29], wk[30]
     P[idx] += 0.5 * (_dot(ud, vs) + _dot(us, vd)) - (_dot(ug, vg) - _dot(uR, vR))
     if mode >= 1:
         for k in range(9):
             for j in range(3):
                 dP[idx, k, j] += cu[k] * vc[j] + cv[k] * uc[j]
     if mode >= 2:
-        for k in range(9):
-            for l in range(9):
-                M[idx, k, l] += 0.5 * (cu[k] * cv[l] + cv[k] * cu[l])
+        tab, n = wk[44], wk[45]
+        tab[n[0], 0] = idx
+        tab[n[0], 1] = iu
+        tab[n[0], 2] = iv
+        n[0] += 1
+
+
+@njit(**KERNEL, inline="always")
+def _basis_row(p, c):
+    """Basis index of D3[p, c] (rows 0-4 are b[0:5])."""
+    return 5 + 2 * p + c
 
 
 @njit(**KERNEL)
@@ -158,19 +175,16 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
     vd, vs, vc, vR = wk[15], wk[16], wk[17], wk[18]        # rows: r_1, r_2, r_11, r_12, r_22
     td, ts, tc, tR = wk[19], wk[20], wk[21], wk[22]        # r_abc
     G, dG, u, du, ddu, tmp = wk[23], wk[24], wk[25], wk[26], wk[27], wk[28]
-    P, dP, M = wk[29], wk[30], wk[31]
+    P, dP = wk[29], wk[30]
     Ainv, Gam, dGam, L, gup, dAi = wk[32], wk[33], wk[34], wk[35], wk[36], wk[37]
     point_map(lam, Q, gl, et, el, b, Cw)
+    wk[45][0] = 0
     for p in range(NP2):
         P[p] = 0.0
         if mode >= 1:
             for k in range(9):
                 for j in range(3):
                     dP[p, k, j] = 0.0
-        if mode >= 2:
-            for k in range(9):
-                for l in range(9):
-                    M[p, k, l] = 0.0
     for r in range(5):
         _apply(b[r], Xd, vd[r])
         _apply(b[r], Xs, vs[r])
@@ -214,14 +228,14 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                         ddu[a, c, d, j] += tmp[j]
     for a in range(2):
         for bb in range(a, 2):
-            _product(wk, _i0(a, bb), b[a], b[bb], vd[a], vs[a], vc[a], vR[a],
+            _product(wk, _i0(a, bb), a, bb, b[a], b[bb], vd[a], vs[a], vc[a], vR[a],
                      vd[bb], vs[bb], vc[bb], vR[bb], u[a], u[bb], mode)
             for c in range(2):
                 ac, bc = 2 + _pair(a, c), 2 + _pair(bb, c)
                 i1 = _i1(a, bb, c)
-                _product(wk, i1, b[ac], b[bb], vd[ac], vs[ac], vc[ac], vR[ac],
+                _product(wk, i1, ac, bb, b[ac], b[bb], vd[ac], vs[ac], vc[ac], vR[ac],
                          vd[bb], vs[bb], vc[bb], vR[bb], du[a, c], u[bb], mode)
-                _product(wk, i1, b[a], b[bc], vd[a], vs[a], vc[a], vR[a],
+                _product(wk, i1, a, bc, b[a], b[bc], vd[a], vs[a], vc[a], vR[a],
                          vd[bc], vs[bc], vc[bc], vR[bc], u[a], du[bb, c], mode)
                 if not second:
                     continue
@@ -229,14 +243,16 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                     ad, bd = 2 + _pair(a, d), 2 + _pair(bb, d)
                     pac, pbc = ac - 2, bc - 2
                     i2 = _i2(a, bb, c, d)
-                    _product(wk, i2, D3[pac, d], b[bb], td[pac, d], ts[pac, d], tc[pac, d], tR[pac, d],
+                    _product(wk, i2, _basis_row(pac, d), bb, D3[pac, d], b[bb], td[pac, d],
+                             ts[pac, d], tc[pac, d], tR[pac, d],
                              vd[bb], vs[bb], vc[bb], vR[bb], ddu[a, c, d], u[bb], mode)
-                    _product(wk, i2, b[ac], b[bd], vd[ac], vs[ac], vc[ac], vR[ac],
+                    _product(wk, i2, ac, bd, b[ac], b[bd], vd[ac], vs[ac], vc[ac], vR[ac],
                              vd[bd], vs[bd], vc[bd], vR[bd], du[a, c], du[bb, d], mode)
-                    _product(wk, i2, b[ad], b[bc], vd[ad], vs[ad], vc[ad], vR[ad],
+                    _product(wk, i2, ad, bc, b[ad], b[bc], vd[ad], vs[ad], vc[ad], vR[ad],
                              vd[bc], vs[bc], vc[bc], vR[bc], du[a, d], du[bb, c], mode)
-                    _product(wk, i2, b[a], D3[pbc, d], vd[a], vs[a], vc[a], vR[a],
-                             td[pbc, d], ts[pbc, d], tc[pbc, d], tR[pbc, d], u[a], ddu[bb, c, d], mode)
+                    _product(wk, i2, a, _basis_row(pbc, d), b[a], D3[pbc, d], vd[a], vs[a],
+                             vc[a], vR[a], td[pbc, d], ts[pbc, d], tc[pbc, d], tR[pbc, d], u[a],
+                             ddu[bb, c, d], mode)
     # reference metric, dual basis, orthonormalizing L = C^-T (A = C C^T)
     A00, A01, A11 = _dot(vR[0], vR[0]), _dot(vR[0], vR[1]), _dot(vR[1], vR[1])
     det = A00 * A11 - A01 * A01
@@ -315,40 +331,60 @@ def _kappa2(a, bb, c, d, wk):
 
 
 @njit(**KERNEL)
-def _components(ncomp, mode, wk):
+def _components(ncomp, nblock, mode, wk):
     """val[t] = chi[t] . P / 2 (the covariant components of e) and, if mode
-    asks, dval[t] = chi[t] . dP / 2 (9, 3)."""
+    asks, dval[t] = chi[t] . dP / 2 (9, 3); chi[t] is zero beyond nblock."""
     P, dP, chi, val, dval = wk[29], wk[30], wk[40], wk[41], wk[42]
     for t in range(ncomp):
         s = 0.0
-        for p in range(NP2):
+        for p in range(nblock):
             s += chi[t, p] * P[p]
         val[t] = 0.5 * s
         if mode >= 1:
             for k in range(9):
                 for j in range(3):
                     s = 0.0
-                    for p in range(NP2):
+                    for p in range(nblock):
                         s += chi[t, p] * dP[p, k, j]
                     dval[t, k, j] = 0.5 * s
 
 
 @njit(**KERNEL)
-def _weighted_M(ncomp, weights, wk):
+def _weighted_M(ncomp, nbasis, weights, wk):
     """Mw = sum_t weights[t] (chi[t] . M) / 2: the second derivative of
-    sum_t weights_t val_t is 2 Mw (x) I3."""
-    M, chi, Mw = wk[31], wk[40], wk[43]
-    for k in range(9):
-        for l in range(9):
-            Mw[k, l] = 0.0
+    sum_t weights_t val_t is 2 Mw (x) I3.  With om = sum_t weights_t chi[t]
+    and the listed products n (block idx_n, basis rows u_n, v_n; _product),
+    Mw = sum_n om[idx_n] (c_u c_v^T + c_v c_u^T) / 4 = Bas^T Wt Bas on the
+    first nbasis basis rows (5 when the blocks stop at P1)."""
+    b, D3, Wt, chi, Mw = wk[6], wk[12], wk[31], wk[40], wk[43]
+    tab, n, om, Bas, T = wk[44], wk[45], wk[46], wk[47], wk[48]
     for p in range(NP2):
-        om = 0.0
+        s = 0.0
         for t in range(ncomp):
-            om += weights[t] * chi[t, p]
-        if om != 0.0:
-            for k in range(9):
-                for l in range(9):
-                    Mw[k, l] += 0.5 * om * M[p, k, l]
+            s += weights[t] * chi[t, p]
+        om[p] = s
+    for u in range(nbasis):
+        for v in range(nbasis):
+            Wt[u, v] = 0.0
+        for k in range(9):
+            Bas[u, k] = b[u, k] if u < 5 else D3[(u - 5) // 2, (u - 5) % 2, k]
+    for r in range(n[0]):
+        w = 0.25 * om[tab[r, 0]]
+        Wt[tab[r, 1], tab[r, 2]] += w
+        Wt[tab[r, 2], tab[r, 1]] += w
+    for u in range(nbasis):
+        for l in range(9):
+            s = 0.0
+            for v in range(nbasis):
+                s += Wt[u, v] * Bas[v, l]
+            T[u, l] = s
+    for k in range(9):
+        for l in range(k, 9):
+            s = 0.0
+            for u in range(nbasis):
+                s += Bas[u, k] * T[u, l]
+            Mw[k, l] = s
+            Mw[l, k] = s
 
 
 # ---------------------------------------------------------------------------
@@ -367,40 +403,46 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
     for iq in range(bary.shape[0]):
         _blocks(e, bary[iq], tri, G0n, mode, True, wk)
         _kappa1(wk)
-        for t in range(16):
+        for t in range(N_T):
             for p in range(NP2):
                 chi[t, p] = 0.0
-        # orthonormal components T_IJKL = L_aI L_bJ L_cK L_dL grad_d grad_c e_ab
+        # orthonormal components T_IJKL = L_aI L_bJ L_cK L_dL grad_d grad_c e_ab;
+        # T_IJKL = T_JIKL (e is symmetric), so |T|^2 sums IJ = 00, 11 once and
+        # IJ = 01 twice: component t = (IJ = 00 | 01 | 11, K, L) is scaled by
+        # sqrt(2) for IJ = 01 and the sums below run over N_T = 12 unweighted.
         for a in range(2):
             for bb in range(2):
                 for c in range(2):
                     for d in range(2):
                         _kappa2(a, bb, c, d, wk)
-                        for t in range(16):
-                            I, J, K_, Lq = t // 8, (t // 4) % 2, (t // 2) % 2, t % 2
+                        for t in range(N_T):
+                            ij = t // 4
+                            I, J, K_, Lq = ij // 2, (ij + 1) // 2, (t // 2) % 2, t % 2
                             f = L[a, I] * L[bb, J] * L[c, K_] * L[d, Lq]
+                            if ij == 1:
+                                f *= SQRT2
                             if f != 0.0:
                                 for p in range(NP2):
                                     chi[t, p] += f * k2[p]
-        _components(16, mode, wk)
+        _components(N_T, NP2, mode, wk)
         w = C * wts[iq] * area
-        for t in range(16):
+        for t in range(N_T):
             Re += w * val[t] * val[t]
         if mode == 0:
             continue
-        for t in range(16):
+        for t in range(N_T):
             for k in range(9):
                 for j in range(3):
                     ge[k, j] += 2.0 * w * val[t] * dval[t, k, j]
         if mode < 2:
             continue
-        _weighted_M(16, val, wk)
+        _weighted_M(N_T, N_BASIS, val, wk)
         for p in range(27):
             kp, jp = p // 3, p % 3
             for q in range(p, 27):
                 kq, jq = q // 3, q % 3
                 s = 0.0
-                for t in range(16):
+                for t in range(N_T):
                     s += dval[t, kp, jp] * dval[t, kq, jq]
                 if jp == jq:
                     s += 2.0 * Mw[kp, kq]
@@ -469,12 +511,12 @@ def _edge_side(e, lam, frame, tri, G0n, mode, wk):
                     f = pa * pb * _dot(gup[c], frame[ga])
                     for p in range(NP1):
                         chi[t, p] += f * k1[a, bb, c, p]
-    _components(8, mode, wk)
+    _components(8, NP1, mode, wk)
 
 
 @njit(cache=True)
 def _edge_work():
-    return _work(), _work(), np.zeros(8), np.zeros((36, 36)), np.zeros((2, 9, 3))
+    return _work(), _work(), np.zeros(8), np.zeros((36, 36)), np.zeros((2, 9, 3)), np.zeros((8, 36))
 
 
 @njit(**KERNEL)
@@ -483,7 +525,7 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
     """R_E of interior edge j; the gradient per side into ew[4] (2, 9, 3) and
     the lower triangle of the Hessian on the edge-node DOFs (9 A + 3 slot +
     component, A = edge_node[j, side, i] of the side's node i) into ew[3]."""
-    wA, wB, J, Hn, gs = ew
+    wA, wB, J, Hn, gs, Dn = ew
     sides = (wA, wB)
     if mode >= 1:
         for s in range(2):
@@ -517,31 +559,37 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
                     gs[s, k, jj] += 2.0 * w * sg * acc
         if mode < 2:
             continue
+        # d J_t on the edge-node DOFs: Dn = dval(side A) - dval(side B)
+        for t in range(8):
+            for P1 in range(36):
+                Dn[t, P1] = 0.0
+        for s1 in range(2):
+            sg1 = 1.0 if s1 == 0 else -1.0
+            d1 = sides[s1][42]
+            for k1 in range(9):
+                o1 = 9 * edge_node[j, s1, k1 // 3] + 3 * (k1 % 3)
+                for j1 in range(3):
+                    for t in range(8):
+                        Dn[t, o1 + j1] += sg1 * d1[t, k1, j1]
+        for P1 in range(36):
+            for P2 in range(P1 + 1):
+                acc = 0.0
+                for t in range(8):
+                    acc += Dn[t, P1] * Dn[t, P2]
+                Hn[P1, P2] += 2.0 * w * acc
         for s1 in range(2):
             sg1 = 1.0 if s1 == 0 else -1.0
             wk1 = sides[s1]
-            _weighted_M(8, J, wk1)          # sum_t J_t d2 val_t = 2 Mw (x) I3 (this side)
-            Mw, d1 = wk1[43], wk1[42]
+            _weighted_M(8, 5, J, wk1)       # sum_t J_t d2 val_t = 2 Mw (x) I3 (this side)
+            Mw = wk1[43]
             for k1 in range(9):
-                A = edge_node[j, s1, k1 // 3]
-                for j1 in range(3):
-                    P1 = 9 * A + 3 * (k1 % 3) + j1
-                    for s2 in range(2):
-                        sg = sg1 * (1.0 if s2 == 0 else -1.0)
-                        d2 = sides[s2][42]
-                        for k2 in range(9):
-                            B = edge_node[j, s2, k2 // 3]
-                            for j2 in range(3):
-                                P2 = 9 * B + 3 * (k2 % 3) + j2
-                                if P2 > P1:
-                                    continue
-                                acc = 0.0
-                                for t in range(8):
-                                    acc += d1[t, k1, j1] * d2[t, k2, j2]
-                                h2 = sg * acc
-                                if s1 == s2 and j1 == j2:
-                                    h2 += sg1 * 2.0 * Mw[k1, k2]
-                                Hn[P1, P2] += 2.0 * w * h2
+                o1 = 9 * edge_node[j, s1, k1 // 3] + 3 * (k1 % 3)
+                for k2 in range(9):
+                    o2 = 9 * edge_node[j, s1, k2 // 3] + 3 * (k2 % 3)
+                    if o2 > o1:
+                        continue
+                    for j1 in range(3):
+                        Hn[o1 + j1, o2 + j1] += 4.0 * w * sg1 * Mw[k1, k2]
     return RE
 
 
