@@ -26,7 +26,14 @@ Steihaug-Toint conjugate gradients preconditioned by the factorization of
 the Hessian where it is positive definite (then the step is Newton's, in one
 CG iteration) or else by the last positive definite factorization, so that CG
 finds the negative curvature directions and the step follows them to the
-trust-region boundary (linalg.py).  The line-search variant takes the
+trust-region boundary (linalg.py).  Once Newton converges fast (a full
+step on a positive definite Hessian cut |g| tenfold), the next Hessian
+differs little from the factorized one: on large problems (REUSE_MIN_DOFS,
+where a factorization costs far more than a CG iteration) the step is then
+solved by CG to the same tolerance preconditioned by the previous
+factorization instead of a new one (same Newton step, to 1e-10); a solve
+that needs more than REUSE_MAX_CG iterations or meets negative curvature
+falls back to factorizing.  The line-search variant takes the
 truncated Newton-CG direction with Armijo backtracking.  At every converged
 state the inertia of the Hessian is known from its factorization; an
 unstable equilibrium is reported with its lowest eigenvalues and, by
@@ -45,6 +52,7 @@ from .linalg import (CGPath, LinearSolverError, jacobi, lower_matvec, make_linea
 GLOBALIZATIONS = ("trust-region", "line-search")
 PATHS = ("load", "arclength")
 STABILITY = ("auto", "inertia", "eigen", "off")
+REUSE = ("auto", "always", "never")
 
 
 class EvaluationError(RuntimeError):
@@ -76,6 +84,9 @@ class SolverOptions:
     path: str = "load"          # "load": adaptive steps in t; "arclength": passes limit points
     stability: str = "auto"     # "inertia" (direct methods), "eigen" (+ lowest eigenpairs), "off";
     #                             auto: inertia with a direct method, off with AMG
+    reuse_factorization: str = "auto"   # solve fast-converging Newton steps with the previous
+    #                             factorization: "auto" from REUSE_MIN_DOFS free DOFs on,
+    #                             "always", "never" (direct methods)
     escape: bool = True         # leave an unstable equilibrium along its most unstable mode
     max_escapes: int = 8        # per continuation step
     armijo: float = 1e-4
@@ -89,7 +100,7 @@ class SolverOptions:
 
     def __post_init__(self):
         for name, allowed in (("globalization", GLOBALIZATIONS), ("path", PATHS),
-                              ("stability", STABILITY)):
+                              ("stability", STABILITY), ("reuse_factorization", REUSE)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name}={getattr(self, name)!r}: choose one of {', '.join(allowed)}")
         resolve_method(self.linear, 0)          # checks the name and availability
@@ -186,6 +197,15 @@ class _Linear:
         self.history.factorizations += 1
         return negative, time.perf_counter() - t0
 
+    def may_reuse(self, opts, n):
+        """The next Newton step (n free DOFs) may be solved with the last
+        factorization (it is positive definite; see the module docstring)."""
+        if opts.reuse_factorization == "never" or not self.direct:
+            return False
+        if not self.solver.current_is_positive_definite():
+            return False
+        return opts.reuse_factorization == "always" or n >= REUSE_MIN_DOFS
+
     def fall_back_to_direct(self, K, why):
         method = "pardiso" if resolve_method("auto", 0) == "pardiso" else "superlu"
         self.history.notes.append(f"AMG: {why}; falling back to the direct solver '{method}'")
@@ -232,6 +252,14 @@ TRUST_SHRINK = 0.5
 # good but short steps, where a smaller step converges in a few iterations
 # (thin panel h/R = 1e-3: 237 -> 129 Newton iterations, stability map)
 SLOW_NEWTON = 10
+# factorization reuse (module docstring), from REUSE_MIN_DOFS free DOFs on
+# ("auto"; a size, not a timing, so that a run is reproducible): PARDISO on
+# the leaf, 226k DOFs: a factorization 6.1 s = 24 CG iterations (two
+# triangular solves and a product with K each); 56k DOFs: 0.25 s = 8, where
+# factorizing is as cheap.  A solve with a reused factorization is given up
+# after REUSE_MAX_CG iterations.
+REUSE_MIN_DOFS = 150_000
+REUSE_MAX_CG = 10
 
 
 def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
@@ -280,13 +308,15 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
     watch_spent = opts.watchdog <= 0
     pd_since = None             # |g| at the first of the current run of positive definite Hessians
     pd_run = 0
+    fast = False                # the last step was a full Newton step that cut |g| tenfold
+    reused = False              # this step is solved with the previous factorization
     for it in range(opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= opts.xtol * size:
             if watch is None or E < watch["E"]:
                 return K
             x, E, g, K, gnorm = _back_to(problem, watch)     # an equilibrium above the start
-            watch, watch_spent, factorized, last_step = None, True, False, np.inf
+            watch, watch_spent, factorized, last_step, fast = None, True, False, np.inf, False
         stalled = (watch is None and len(gnorms) >= 8 and gnorm > 0.5 * gnorms[-7]
                    and energies[-7] - E <= 1e-6 * max(problem.energy_magnitude(), abs(E)))
         if it == opts.max_iter or stalled:
@@ -295,7 +325,11 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             return None
         setup = 0.0
         if not factorized:
-            negative, setup = lin.factorize(K)
+            reused = fast and lin.may_reuse(opts, len(x))
+            if reused:
+                negative = None
+            else:
+                negative, setup = lin.factorize(K)
             factorized = True
         exact = lin.solver.current_is_positive_definite()
         pd_run, pd_since = (pd_run + 1, pd_since or gnorm) if exact else (0, None)
@@ -324,8 +358,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                 p, info = replayed
             else:
                 cg_path = CGPath() if trust and lin.direct and np.isfinite(r) else None
-                p, info = steihaug_cg(matvec, g, lin.preconditioner(K), r, eta, opts.max_cg, lin.project,
-                                      cg_path)
+                p, info = steihaug_cg(matvec, g, lin.preconditioner(K), r, eta,
+                                      REUSE_MAX_CG if reused else opts.max_cg, lin.project, cg_path)
         except LinearSolverError as exc:
             cg_path = None
             if not lin.direct and lin.solver.restore_previous():
@@ -337,6 +371,13 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                 M = jacobi(K)
             p, info = steihaug_cg(matvec, g, M, r, eta, opts.max_cg, lin.project)
         solve_s = time.perf_counter() - ts
+        if reused and info["reason"] != "converged":
+            # the previous factorization is no longer a good preconditioner
+            # (or the Hessian is indefinite): factorize and solve again
+            history.notes.append(f"t={t:.4g} it={it}: reused factorization: CG {info['reason']} "
+                                 f"after {info['iterations']} iterations; factorized")
+            factorized = fast = False
+            continue
         if not lin.direct:
             rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
             setup += rebuilt
@@ -354,7 +395,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             trial = _watchdog_trial(problem, x, p, newton_step, g, matvec, noise(E))
             if trial is None and watch is not None:        # off the probation: back
                 x, E, g, K, gnorm = _back_to(problem, watch)
-                watch, watch_spent, factorized = None, True, False
+                watch, watch_spent, factorized, fast = None, True, False, False
                 continue
             if trial is not None:
                 if watch is None and trial[0] >= E:
@@ -370,6 +411,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                                                     uphill=watch is not None))
                 E, g, K = trial
                 gnorm_prev, gnorm = gnorm, np.linalg.norm(g)
+                fast = newton_step and gnorm <= 0.1 * gnorm_prev
                 gnorms.append(gnorm)
                 energies.append(E)
                 factorized, last_step = False, np.abs(p).max()
@@ -379,7 +421,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                         watch = None                      # below the start: monotone again
                     elif watch["steps"] > opts.watchdog:
                         x, E, g, K, gnorm = _back_to(problem, watch)
-                        watch, watch_spent, last_step = None, True, np.inf
+                        watch, watch_spent, last_step, fast = None, True, np.inf, False
                 if opts.verbose:
                     print(f"    t={t:.4f} it={it:2d}  E={E: .10e}  |g|={gnorm:.3e}  full Newton step"
                           + (" (watchdog)" if watch is not None else ""), flush=True)
@@ -455,6 +497,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                     return None
             factorized = False
             gnorm_prev, gnorm = gnorm, np.linalg.norm(g)
+            fast = newton_step and alpha == 1.0 and gnorm <= 0.1 * gnorm_prev
             gnorms.append(gnorm)
             energies.append(E)
             rec.energy, rec.grad_norm = E, gnorm
