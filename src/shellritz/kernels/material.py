@@ -399,7 +399,8 @@ def mat_prepare(kind, psi, params, A, mv, mm, mp):
                            - (1.0 if J == L else 0.0))
                 S[3 * J + L] = 2.0 * mu * e
                 EE += e * e
-            trE += 0.5 * (A[0, J] * A[0, J] + A[1, J] * A[1, J] + A[2, J] * A[2, J] - 1.0)
+                if J == L:
+                    trE += e
         for J in range(3):
             S[4 * J] += lam * trE
         mp[S_W] = 0.5 * lam * trE * trE + mu * EE
@@ -705,6 +706,21 @@ def mat_d3_vec(mv, mm, mp, c, d, out):
         _d3_vec(2, mv, mm, mp, c, d, out)
 
 
+@njit(**KERNEL, inline="always")
+def _c4_sym(x, y, lam, mu, out):
+    """out = C4[sym(x^T y)] = lam (x:y) I + mu (x^T y + y^T x) (3x3 flattened)."""
+    xy = 0.0
+    for p in range(9):
+        xy += x[p] * y[p]
+    for J in range(3):
+        for L in range(3):
+            t = 0.0
+            for i in range(3):
+                t += x[3 * i + J] * y[3 * i + L] + y[3 * i + J] * x[3 * i + L]
+            out[3 * J + L] = mu * t
+        out[4 * J] += lam * xy
+
+
 @njit(**KERNEL)
 def _svk_d3_vec(mv, mp, c, d, out):
     """mat_d3_vec for KIND_SVK: out = c S_d + d S_c + A S_cd with
@@ -712,28 +728,9 @@ def _svk_d3_vec(mv, mp, c, d, out):
     lam, mu = mp[S_LAM], mp[S_MU]
     A9 = mv[V_A]
     Sx = mv[V_QC:V_QC + 3]       # rows: S_c, S_d, S_cd (3x3 flattened)
-    ac = 0.0
-    ad = 0.0
-    cd = 0.0
-    for p in range(9):
-        ac += A9[p] * c[p]
-        ad += A9[p] * d[p]
-        cd += c[p] * d[p]
-    for J in range(3):
-        for L in range(3):
-            tc = 0.0
-            td = 0.0
-            tcd = 0.0
-            for i in range(3):
-                tc += A9[3 * i + J] * c[3 * i + L] + c[3 * i + J] * A9[3 * i + L]
-                td += A9[3 * i + J] * d[3 * i + L] + d[3 * i + J] * A9[3 * i + L]
-                tcd += c[3 * i + J] * d[3 * i + L] + d[3 * i + J] * c[3 * i + L]
-            Sx[0, 3 * J + L] = mu * tc
-            Sx[1, 3 * J + L] = mu * td
-            Sx[2, 3 * J + L] = mu * tcd
-        Sx[0, 4 * J] += lam * ac
-        Sx[1, 4 * J] += lam * ad
-        Sx[2, 4 * J] += lam * cd
+    _c4_sym(A9, c, lam, mu, Sx[0])
+    _c4_sym(A9, d, lam, mu, Sx[1])
+    _c4_sym(c, d, lam, mu, Sx[2])
     for i in range(3):
         for J in range(3):
             s = 0.0

@@ -134,17 +134,22 @@ def _third_derivative_map(wk):
             for c in range(2):
                 for k in range(9):
                     D3[p, c, k] += gl[i, c] * bv[2 + p, k]
+    Bas = wk[47]
+    for p in range(3):
+        for c in range(2):
+            for k in range(9):
+                Bas[_basis_row(p, c), k] = D3[p, c, k]
 
 
 @njit(**KERNEL)
-def _product(wk, idx, iu, iv, cu, cv, ud, us, uc, uR, vd, vs, vc, vR, ug, vg, mode):
-    """Block idx += u.v for two linear maps with coefficient rows cu, cv (basis
-    rows iu, iv, see _basis_row; their vectors of X - Xref (d), X + Xref (s),
-    X (c), Xref (R)) less the growth part ug.vg - uR.vR; gradient
-    cu (x) v + cv (x) u.  The second derivative, M_idx += (cu cv^T + cv cu^T)/2
-    (x) I3, is not formed: the product is listed and _weighted_M sums the
-    weighted M_idx at once."""
-    P, dP = wk[29], wk[30]
+def _product(wk, idx, iu, iv, ud, us, uc, uR, vd, vs, vc, vR, ug, vg, mode):
+    """Block idx += u.v for two linear maps with coefficient rows cu = Bas[iu],
+    cv = Bas[iv] (their vectors of X - Xref (d), X + Xref (s), X (c), Xref (R))
+    less the growth part ug.vg - uR.vR; gradient cu (x) v + cv (x) u.  The
+    second derivative, M_idx += (cu cv^T + cv cu^T)/2 (x) I3, is not formed:
+    the product is listed and _weighted_M sums the weighted M_idx at once."""
+    P, dP, Bas = wk[29], wk[30], wk[47]
+    cu, cv = Bas[iu], Bas[iv]
     P[idx] += 0.5 * (_dot(ud, vs) + _dot(us, vd)) - (_dot(ug, vg) - _dot(uR, vR))
     if mode >= 1:
         for k in range(9):
@@ -160,7 +165,7 @@ def _product(wk, idx, iu, iv, cu, cv, ud, us, uc, uR, vd, vs, vc, vR, ug, vg, mo
 
 @njit(**KERNEL, inline="always")
 def _basis_row(p, c):
-    """Basis index of D3[p, c] (rows 0-4 are b[0:5])."""
+    """Row of Bas holding D3[p, c] (rows 0-4 are b[0:5])."""
     return 5 + 2 * p + c
 
 
@@ -178,6 +183,10 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
     P, dP = wk[29], wk[30]
     Ainv, Gam, dGam, L, gup, dAi = wk[32], wk[33], wk[34], wk[35], wk[36], wk[37]
     point_map(lam, Q, gl, et, el, b, Cw)
+    Bas = wk[47]
+    for r in range(5):
+        for k in range(9):
+            Bas[r, k] = b[r, k]
     wk[45][0] = 0
     for p in range(NP2):
         P[p] = 0.0
@@ -228,14 +237,14 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                         ddu[a, c, d, j] += tmp[j]
     for a in range(2):
         for bb in range(a, 2):
-            _product(wk, _i0(a, bb), a, bb, b[a], b[bb], vd[a], vs[a], vc[a], vR[a],
+            _product(wk, _i0(a, bb), a, bb, vd[a], vs[a], vc[a], vR[a],
                      vd[bb], vs[bb], vc[bb], vR[bb], u[a], u[bb], mode)
             for c in range(2):
                 ac, bc = 2 + _pair(a, c), 2 + _pair(bb, c)
                 i1 = _i1(a, bb, c)
-                _product(wk, i1, ac, bb, b[ac], b[bb], vd[ac], vs[ac], vc[ac], vR[ac],
+                _product(wk, i1, ac, bb, vd[ac], vs[ac], vc[ac], vR[ac],
                          vd[bb], vs[bb], vc[bb], vR[bb], du[a, c], u[bb], mode)
-                _product(wk, i1, a, bc, b[a], b[bc], vd[a], vs[a], vc[a], vR[a],
+                _product(wk, i1, a, bc, vd[a], vs[a], vc[a], vR[a],
                          vd[bc], vs[bc], vc[bc], vR[bc], u[a], du[bb, c], mode)
                 if not second:
                     continue
@@ -243,14 +252,14 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                     ad, bd = 2 + _pair(a, d), 2 + _pair(bb, d)
                     pac, pbc = ac - 2, bc - 2
                     i2 = _i2(a, bb, c, d)
-                    _product(wk, i2, _basis_row(pac, d), bb, D3[pac, d], b[bb], td[pac, d],
+                    _product(wk, i2, _basis_row(pac, d), bb, td[pac, d],
                              ts[pac, d], tc[pac, d], tR[pac, d],
                              vd[bb], vs[bb], vc[bb], vR[bb], ddu[a, c, d], u[bb], mode)
-                    _product(wk, i2, ac, bd, b[ac], b[bd], vd[ac], vs[ac], vc[ac], vR[ac],
+                    _product(wk, i2, ac, bd, vd[ac], vs[ac], vc[ac], vR[ac],
                              vd[bd], vs[bd], vc[bd], vR[bd], du[a, c], du[bb, d], mode)
-                    _product(wk, i2, ad, bc, b[ad], b[bc], vd[ad], vs[ad], vc[ad], vR[ad],
+                    _product(wk, i2, ad, bc, vd[ad], vs[ad], vc[ad], vR[ad],
                              vd[bc], vs[bc], vc[bc], vR[bc], du[a, d], du[bb, c], mode)
-                    _product(wk, i2, a, _basis_row(pbc, d), b[a], D3[pbc, d], vd[a], vs[a],
+                    _product(wk, i2, a, _basis_row(pbc, d), vd[a], vs[a],
                              vc[a], vR[a], td[pbc, d], ts[pbc, d], tc[pbc, d], tR[pbc, d], u[a],
                              ddu[bb, c, d], mode)
     # reference metric, dual basis, orthonormalizing L = C^-T (A = C C^T)
@@ -356,7 +365,7 @@ def _weighted_M(ncomp, nbasis, weights, wk):
     and the listed products n (block idx_n, basis rows u_n, v_n; _product),
     Mw = sum_n om[idx_n] (c_u c_v^T + c_v c_u^T) / 4 = Bas^T Wt Bas on the
     first nbasis basis rows (5 when the blocks stop at P1)."""
-    b, D3, Wt, chi, Mw = wk[6], wk[12], wk[31], wk[40], wk[43]
+    Wt, chi, Mw = wk[31], wk[40], wk[43]
     tab, n, om, Bas, T = wk[44], wk[45], wk[46], wk[47], wk[48]
     for p in range(NP2):
         s = 0.0
@@ -366,8 +375,6 @@ def _weighted_M(ncomp, nbasis, weights, wk):
     for u in range(nbasis):
         for v in range(nbasis):
             Wt[u, v] = 0.0
-        for k in range(9):
-            Bas[u, k] = b[u, k] if u < 5 else D3[(u - 5) // 2, (u - 5) % 2, k]
     for r in range(n[0]):
         w = 0.25 * om[tab[r, 0]]
         Wt[tab[r, 1], tab[r, 2]] += w
