@@ -158,6 +158,28 @@ def test_fast_newton_steps_reuse_the_previous_factorization():
     assert always.stable and not always.notes
 
 
+@pytest.mark.parametrize("method", ["pardiso", "superlu"])
+def test_a_solve_frees_its_factorizations(monkeypatch, method):
+    """MKL keeps PARDISO's factors until told to free them: before this was
+    done every solve of a process kept two factors (measured: +0.4 GB per
+    solve of the 12k-triangle leaf, 0.34 -> 1.9 GB after four solves; now
+    0.34 -> 0.54)."""
+    if method == "pardiso" and not pardiso_available():
+        pytest.skip("pypardiso not installed")
+    import shellritz.solve as solve_module
+    made, original = [], solve_module.make_linear_solver
+
+    def recording(*args, **kw):
+        made.append(original(*args, **kw))
+        return made[-1]
+
+    monkeypatch.setattr(solve_module, "make_linear_solver", recording)
+    leaf(6).solve(verbose=False, linear=method)
+    assert len(made) == 1
+    slots = made[0]._slots
+    assert all(not s._analysed for s in slots) if method == "pardiso" else all(s._lu is None for s in slots)
+
+
 # ------------------------------------------------------------------- AMG
 def test_amg_gives_the_direct_solution_and_falls_back_when_cg_stalls(cantilever_default):
     res, tip = cantilever_default

@@ -31,6 +31,7 @@ from .mesh import Mesh, MeshError
 from .model import check_thickness, level_id, pressure_face
 from .solve import EvaluationError, Solvable
 from .strain_gradient import DKTStrainGradient, coefficient, dkt_active_elements
+from .transfer import interpolate_state
 from .validity import dkt_validity
 
 __all__ = ["Shell", "Result"]
@@ -660,6 +661,17 @@ class Shell(Solvable):
 
     def _result(self, history, wall_s, converged, t):
         return Result(self, history, wall_s, converged=converged, t=t)
+
+    def _start_from(self, result):
+        """Free DOFs from ``result`` (transfer.py; prescribed DOFs keep their
+        values); returns the result's t."""
+        if not isinstance(result, Result):
+            raise TypeError(f"start must be a shellritz Result (of Shell.solve), not {type(result).__name__}")
+        if result.t is None:
+            raise ValueError("start: the result has no equilibrium state (its solve failed at the start)")
+        U = interpolate_state(result, self)
+        self.U.reshape(-1)[self.free] = U.reshape(-1)[self.free]
+        return float(result.t)
 
 
 def _volume_terms(tri, r, mode):

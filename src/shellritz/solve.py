@@ -206,6 +206,12 @@ class _Linear:
             return False
         return opts.reuse_factorization == "always" or n >= REUSE_MIN_DOFS
 
+    def release(self):
+        """Free the factors (MKL keeps PARDISO's until told: without this
+        every solve of a process kept its two factors to the end)."""
+        if self.solver is not None:
+            self.solver.release()
+
     def fall_back_to_direct(self, K, why):
         method = "pardiso" if resolve_method("auto", 0) == "pardiso" else "superlu"
         self.history.notes.append(f"AMG: {why}; falling back to the direct solver '{method}'")
@@ -698,6 +704,13 @@ def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0):
     history = SolveHistory()
     problem = _Counted(problem, history)
     lin = _Linear(problem, opts, history)
+    try:
+        return _follow_path(problem, steps, opts, history, lin, min_dt, t_start)
+    finally:
+        lin.release()
+
+
+def _follow_path(problem, steps, opts, history, lin, min_dt, t_start):
     t = t_start
     problem.set_parameter(t)
     g_ref = problem.load_scale()
@@ -924,14 +937,19 @@ class Solvable:
     problem protocol above and ``_setup()``, ``_describe()`` (one line) and
     ``_result(history, wall_s, converged, t)``."""
 
-    def solve(self, steps=1, verbose=True, min_dt=1e-4, monitor=None, **options):
-        """Equilibrium at t = 1 by continuation from the reference (t = 0).
+    def solve(self, steps=1, verbose=True, min_dt=1e-4, monitor=None, start=None, **options):
+        """Equilibrium at t = 1 by continuation from the reference (t = 0),
+        or from ``start``.
 
         steps: initial number of continuation steps (adapted: halved on
         failure or when Newton creeps, SLOW_NEWTON; doubled after easy
         steps; arc length: the first arc step is 1/steps); min_dt: smallest
         step before giving up; monitor: node indices whose positions are
-        recorded along an arc-length path, or a callable(engine) -> numbers.  Solver options (SolverOptions, with
+        recorded along an arc-length path, or a callable(engine) -> numbers;
+        start: a Result on another mesh of the same reference surface
+        (typically coarser): its state is carried onto this mesh
+        (transfer.py) and Newton starts there, at the result's t (nested
+        iteration: README "Large meshes").  Solver options (SolverOptions, with
         their defaults and meaning): rtol (relative gradient tolerance),
         max_iter (Newton iterations per step), linear ("auto" | "pardiso" |
         "superlu" | "amg", linalg.py), globalization ("trust-region" |
@@ -953,17 +971,23 @@ class Solvable:
                             f"the options are {', '.join(sorted(known))}")
         opts = SolverOptions(verbose=verbose, **options)
         self._setup()
+        t_start = 0.0 if start is None else self._start_from(start)
         self._monitor = (monitor if monitor is None or callable(monitor)
                          else np.atleast_1d(np.asarray(monitor, int)))
         t0 = time.perf_counter()
         if verbose:
             print(self._describe(), flush=True)
         try:
-            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt)
+            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt, t_start=t_start)
         except SolveError as exc:
             exc.result = self._result(exc.history, time.perf_counter() - t0, False, exc.last_t)
             raise
         return self._result(history, time.perf_counter() - t0, True, history.steps[-1][0])
+
+    def _start_from(self, result):
+        """Carry ``result``'s state onto this engine; returns its t."""
+        raise TypeError(f"solve(start=...) is available for the triangle engine (Shell), "
+                        f"not for {type(self).__name__}")
 
     def monitor(self):
         """The monitored values (solve(monitor=...)): positions of nodes, or
