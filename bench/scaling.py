@@ -4,7 +4,11 @@ The default scene (meshes/leaf.toml: a disc of radius 1 grown in its plane by
 1 + 0.3 rho^2 buckles into a saddle) on shapes.disc(rings) meshes of about
 6 rings^2 triangles, solved to a relative gradient of 1e-8 in one adaptive
 continuation step, with every linear method where it fits: "pardiso",
-"superlu" (small meshes), "amg".  Each run is a fresh process on 2 threads
+"superlu" (small meshes), "amg"; and "pardiso-nested": PARDISO with nested
+iteration (the leaf solved on coarser discs first, each level starting from
+the previous equilibrium, Shell.solve(start=...); all levels inside the
+timed span, their Newton iterations and factorizations in nested_levels;
+newton_its, krylov_its and factorizations are those of the finest level).  Each run is a fresh process on 2 threads
 (NUMBA/OMP/MKL_NUM_THREADS = 2) that first loads the compiled kernels and
 solves a tiny leaf (compile time excluded, reported separately), then
 solves the scene and times one Hessian assembly at the solution (the unit
@@ -18,10 +22,10 @@ solve_in_assemblies.
 
 Writes bench/results/scaling.json (rows: n_triangles, dofs, solver, wall_s,
 assembly_s, solve_in_assemblies, peak_mem_gb, newton_its, krylov_its,
-krylov_per_newton, factorizations, energy, stable, converged, error) and
+krylov_per_newton, factorizations, nested_levels, energy, stable, converged, error) and
 bench/results/scaling.png.
 
-Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg] [--repeats 3]
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested] [--repeats 3]
       python bench/scaling.py --quick        (rings 8 and 16)
 """
 
@@ -42,9 +46,15 @@ sys.path.insert(0, str(HERE))
 RTOL = 1e-8
 THREADS = 2
 # where a method is run (triangles): SuperLU's fill and time grow too fast
-# beyond 50k triangles; two PARDISO factors of a 1M-triangle mesh (4.5M
-# DOFs, about 3 KB per DOF each) do not fit in 24 GB
-LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None}
+# beyond 50k triangles; two PARDISO handles of a 1M-triangle mesh (4.5M
+# DOFs, 8.8 KB per DOF each at 226k DOFs and growing) do not fit in 24 GB
+LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 250_000}
+# "pardiso-nested": nested iteration (Shell.solve(start=...)): the leaf on
+# discs of rings/2, rings/4, ... (at least NESTED_COARSEST rings, the
+# default leaf's mesh) first, each level from the previous one's
+# equilibrium, all inside the timed span (16 -> 32 rings: 5 Newton
+# iterations instead of 18 from the flat disc).
+NESTED_COARSEST = 16
 TIME_LIMIT_S = 1200
 
 CHILD = r"""
@@ -54,16 +64,26 @@ from shellritz.batch import prepare_kernels
 from shellritz.scenes import leaf
 from shellritz import SolveError
 rings, solver, rtol = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
+coarser = [int(k) for k in sys.argv[4].split(",") if k]
+linear = solver.split("-")[0]
 kernels_s, compiled = prepare_kernels()
 t = time.perf_counter()
-leaf(4).solve(verbose=False, linear=solver)
+leaf(4).solve(verbose=False, linear=linear)
 warm_s = time.perf_counter() - t
 shell = leaf(rings)
 row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solver,
-           kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s)
+           kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s, nested_levels=[])
 t = time.perf_counter()
 try:
-    res = shell.solve(verbose=False, linear=solver, rtol=rtol)
+    start = None
+    for k in coarser:        # nested iteration: each level starts from the previous one
+        tk = time.perf_counter()
+        start = leaf(k).solve(verbose=False, linear=linear, rtol=rtol, start=start)
+        row["nested_levels"].append(dict(rings=k, n_triangles=int(len(start.shell.mesh.triangles)),
+                                         wall_s=time.perf_counter() - tk,
+                                         newton_its=len(start.history.iterations),
+                                         factorizations=start.history.factorizations))
+    res = shell.solve(verbose=False, linear=linear, rtol=rtol, start=start)
     h, converged, error = res.history, True, None
 except SolveError as exc:
     h, converged, error = exc.history, False, str(exc)
@@ -91,12 +111,24 @@ print("ROW " + json.dumps(row))
 """
 
 
+def nested_levels(rings):
+    """The coarser discs a "-nested" method solves first, coarsest first:
+    rings halved while at least NESTED_COARSEST."""
+    levels = []
+    while rings // 2 >= NESTED_COARSEST:
+        rings //= 2
+        levels.insert(0, rings)
+    return levels
+
+
 def run(rings, solver):
     env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
                MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
+    coarser = nested_levels(rings) if solver.endswith("-nested") else []
     t = time.perf_counter()
     try:
-        p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL)], env=env,
+        p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL),
+                            ",".join(map(str, coarser))], env=env,
                            capture_output=True, text=True, timeout=TIME_LIMIT_S)
     except subprocess.TimeoutExpired:
         return {"rings": rings, "solver": solver, "converged": False,
@@ -141,7 +173,7 @@ def chart(rows, path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rings", type=int, nargs="+", default=[16, 45, 91, 129, 182, 408])
-    ap.add_argument("--solvers", nargs="+", default=["pardiso", "superlu", "amg"])
+    ap.add_argument("--solvers", nargs="+", default=["pardiso", "superlu", "amg", "pardiso-nested"])
     ap.add_argument("--quick", action="store_true", help="rings 8 and 16")
     ap.add_argument("--repeats", type=int, default=1,
                     help="fresh processes per size and method; the row of the median wall time is kept")
@@ -155,7 +187,8 @@ def main():
         n_est = 6 * k * k
         for solver in args.solvers:
             limit = LIMITS[solver]
-            if (k, solver) in done or (limit is not None and n_est > limit):
+            if ((k, solver) in done or (limit is not None and n_est > limit)
+                    or (solver.endswith("-nested") and not nested_levels(k))):
                 continue
             runs = [run(k, solver) for _ in range(args.repeats)]
             ok = [r for r in runs if r.get("converged")]
