@@ -949,7 +949,7 @@ class Solvable:
         start: a Result on another mesh of the same reference surface
         (typically coarser): its state is carried onto this mesh
         (transfer.py) and Newton starts there, at the result's t (nested
-        iteration: README "Large meshes").  Solver options (SolverOptions, with
+        iteration: README "Scaling").  Solver options (SolverOptions, with
         their defaults and meaning): rtol (relative gradient tolerance),
         max_iter (Newton iterations per step), linear ("auto" | "pardiso" |
         "superlu" | "amg", linalg.py), globalization ("trust-region" |
