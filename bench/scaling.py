@@ -6,9 +6,12 @@ The default scene (meshes/leaf.toml: a disc of radius 1 grown in its plane by
 continuation step, with every linear method where it fits: "pardiso",
 "superlu" (small meshes), "amg"; and "pardiso-nested": PARDISO with nested
 iteration (the leaf solved on coarser discs first, each level starting from
-the previous equilibrium, Shell.solve(start=...); all levels inside the
+the previous equilibrium, Shell.solve(start=...), with linear="auto" as a
+user would: PARDISO below AUTO_DIRECT_MAX_DOFS; all levels inside the
 timed span, their Newton iterations and factorizations in nested_levels;
-newton_its, krylov_its and factorizations are those of the finest level).  Each run is a fresh process on 2 threads
+newton_its, krylov_its and factorizations are those of the finest level),
+and "amg-nested": the same with AMG on the finest level (the method for
+meshes whose factors do not fit in memory).  Each run is a fresh process on 2 threads
 (NUMBA/OMP/MKL_NUM_THREADS = 2) that first loads the compiled kernels and
 solves a tiny leaf (compile time excluded, reported separately), then
 solves the scene and times one Hessian assembly at the solution (the unit
@@ -25,7 +28,7 @@ assembly_s, solve_in_assemblies, peak_mem_gb, newton_its, krylov_its,
 krylov_per_newton, factorizations, nested_levels, energy, stable, converged, error) and
 bench/results/scaling.png.
 
-Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested] [--repeats 3]
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested] [--repeats 3] [--time-limit 1200]
       python bench/scaling.py --quick        (rings 8 and 16)
 """
 
@@ -48,7 +51,8 @@ THREADS = 2
 # where a method is run (triangles): SuperLU's fill and time grow too fast
 # beyond 50k triangles; two PARDISO handles of a 1M-triangle mesh (4.5M
 # DOFs, 8.8 KB per DOF each at 226k DOFs and growing) do not fit in 24 GB
-LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 250_000}
+LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 250_000,
+          "amg-nested": None}
 # "pardiso-nested": nested iteration (Shell.solve(start=...)): the leaf on
 # discs of rings/2, rings/4, ... (at least NESTED_COARSEST rings, the
 # default leaf's mesh) first, each level from the previous one's
@@ -78,7 +82,7 @@ try:
     start = None
     for k in coarser:        # nested iteration: each level starts from the previous one
         tk = time.perf_counter()
-        start = leaf(k).solve(verbose=False, linear=linear, rtol=rtol, start=start)
+        start = leaf(k).solve(verbose=False, linear="auto", rtol=rtol, start=start)
         row["nested_levels"].append(dict(rings=k, n_triangles=int(len(start.shell.mesh.triangles)),
                                          wall_s=time.perf_counter() - tk,
                                          newton_its=len(start.history.iterations),
@@ -121,7 +125,7 @@ def nested_levels(rings):
     return levels
 
 
-def run(rings, solver):
+def run(rings, solver, time_limit):
     env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
                MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
     coarser = nested_levels(rings) if solver.endswith("-nested") else []
@@ -129,10 +133,10 @@ def run(rings, solver):
     try:
         p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL),
                             ",".join(map(str, coarser))], env=env,
-                           capture_output=True, text=True, timeout=TIME_LIMIT_S)
+                           capture_output=True, text=True, timeout=time_limit)
     except subprocess.TimeoutExpired:
         return {"rings": rings, "solver": solver, "converged": False,
-                "error": f"time limit {TIME_LIMIT_S} s", "wall_s": time.perf_counter() - t}
+                "error": f"time limit {time_limit} s", "wall_s": time.perf_counter() - t}
     for line in p.stdout.splitlines():
         if line.startswith("ROW "):
             return json.loads(line[4:])
@@ -173,7 +177,10 @@ def chart(rows, path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rings", type=int, nargs="+", default=[16, 45, 91, 129, 182, 408])
-    ap.add_argument("--solvers", nargs="+", default=["pardiso", "superlu", "amg", "pardiso-nested"])
+    ap.add_argument("--solvers", nargs="+",
+                    default=["pardiso", "superlu", "amg", "pardiso-nested", "amg-nested"])
+    ap.add_argument("--time-limit", type=float, default=TIME_LIMIT_S,
+                    help="seconds per process (the 1M-triangle run needs more)")
     ap.add_argument("--quick", action="store_true", help="rings 8 and 16")
     ap.add_argument("--repeats", type=int, default=1,
                     help="fresh processes per size and method; the row of the median wall time is kept")
@@ -190,7 +197,7 @@ def main():
             if ((k, solver) in done or (limit is not None and n_est > limit)
                     or (solver.endswith("-nested") and not nested_levels(k))):
                 continue
-            runs = [run(k, solver) for _ in range(args.repeats)]
+            runs = [run(k, solver, args.time_limit) for _ in range(args.repeats)]
             ok = [r for r in runs if r.get("converged")]
             # the run of median wall time (all converged), with the walls of all runs
             row = sorted(ok, key=lambda r: r["wall_s"])[len(ok) // 2] if len(ok) == len(runs) else runs[-1]

@@ -59,6 +59,19 @@ def test_a_fine_solve_from_a_coarse_equilibrium_reaches_the_same_equilibrium_soo
     assert len(nested.history.iterations) < len(direct.history.iterations) - 4
 
 
+def test_the_tolerance_of_a_started_solve_refers_to_the_reference_state():
+    """rtol is relative to the gradient of the reference state at the
+    start's t (what a solve from the flat disc is held to), not to the
+    transferred state's own, already small, gradient: an equilibrium carried
+    onto its own mesh needs no Newton step (before: one, to cut its
+    round-off gradient by another 1e-9; on the 50k leaf the nested solve's
+    last Newton step, 49 AMG-preconditioned CG iterations, was of this kind)."""
+    solved = leaf(10).solve(verbose=False)
+    again = leaf(10).solve(verbose=False, start=solved)
+    assert again.converged and len(again.history.iterations) == 0
+    assert np.abs(again.r - solved.r).max() == 0.0
+
+
 def test_start_needs_a_result_on_the_same_surface():
     coarse = leaf(4).solve(verbose=False)
     with pytest.raises(TypeError, match="Result"):

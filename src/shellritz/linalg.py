@@ -46,6 +46,15 @@ METHODS = ("auto", "pardiso", "superlu", "amg")
 # 8.8 at 226k, and the solver keeps two; see README "Solver").
 AUTO_DIRECT_MAX_DOFS = 600_000
 
+# AMG: coarsening stops at this many block rows (pyamg counts blocks: the
+# coarse levels have one 12 x 12 block per aggregate, the near-null space
+# size), where SuperLU solves; at most 3,000 DOFs.  Measured on the 50k leaf
+# Hessian (226k DOFs): 3,000 blocks stopped at a dense 23,000-DOF level 1
+# whose SuperLU factor took 50 s and 0.6 GB (20 CG iterations, 0.44 s each);
+# 250 blocks give three levels, a 576-DOF coarse solve and, with W-cycles,
+# 56 CG iterations of 0.43 s (V-cycles: 77).
+AMG_COARSE_BLOCKS = 250
+
 
 class LinearSolverError(RuntimeError):
     """A linear solve could not be done (message says which method and why)."""
@@ -288,10 +297,8 @@ class AMGSolver:
     rigid-body modes of the current state -- translations, and rotations
     acting on positions and tangent derivatives -- and for triangles six
     bending modes).  The hierarchy is built on the first Hessian (the
-    reference state) and rebuilt on the current one when the CG iterations
-    grow beyond ``rebuild_growth`` times those after the last build, but only
-    where CG met no negative curvature (a V-cycle of an indefinite Hessian is
-    no SPD preconditioner); if a rebuilt one turns out not SPD, the previous
+    reference state) and rebuilt on the current one when CG slows down
+    (``note_iterations``); if a rebuilt one turns out not SPD, the previous
     hierarchy comes back.
     """
 
@@ -304,7 +311,7 @@ class AMGSolver:
         self.rebuild_growth = rebuild_growth
         self.options = dict(options or {})
         self._ml = self._previous = None
-        self._its_at_build = None
+        self._per_digit_at_build = None
         self.K = None
         self.builds = 0
 
@@ -334,24 +341,32 @@ class AMGSolver:
                     smooth=("energy", {"krylov": "cg", "maxiter": 4, "degree": 2, "weighting": "local"}),
                     presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
-                    max_coarse=3000, coarse_solver="splu")
+                    max_coarse=AMG_COARSE_BLOCKS, coarse_solver="splu")
         opts.update(self.options)
         with warnings.catch_warnings():
             # fewer near-null modes than DOFs per node (line engines): pyamg warns, on purpose here
             warnings.filterwarnings("ignore", message="Having less target vectors")
             ml = pyamg.smoothed_aggregation_solver(A, B=self.near_null(), **opts)
         self._previous, self._ml = self._ml, ml
-        self._its_at_build = None
+        self._per_digit_at_build = None
         self.builds += 1
 
-    def note_iterations(self, its, reason):
-        """After a CG solve: rebuild the hierarchy on the current Hessian if
-        CG slowed down without meeting negative curvature.  Returns the
-        seconds spent rebuilding (0: kept)."""
-        if self._its_at_build is None:
-            self._its_at_build = max(its, 1)
+    def note_iterations(self, its, reason, rtol):
+        """After a CG solve to the relative residual rtol: rebuild the
+        hierarchy on the current Hessian if CG slowed down -- it needs more
+        than ``rebuild_growth`` times the iterations per digit of residual
+        reduction of the first solve after the last build (a count alone
+        grows with the Eisenstat-Walker forcing as Newton converges).  Exits
+        on the trust-region boundary tell no rate; on negative curvature the
+        W-cycle of an indefinite Hessian would be no SPD preconditioner: both
+        are left alone.  Returns the seconds spent rebuilding (0: kept)."""
+        if reason not in ("converged", "maxiter"):
             return 0.0
-        if its > self.rebuild_growth * self._its_at_build + 5 and reason != "negative curvature":
+        per_digit = max(its, 1) / max(-np.log10(rtol), 1.0)
+        if self._per_digit_at_build is None:
+            self._per_digit_at_build = per_digit
+            return 0.0
+        if per_digit > self.rebuild_growth * self._per_digit_at_build and its > 5:
             t0 = time.perf_counter()
             self._build(self.K)
             return time.perf_counter() - t0
@@ -363,7 +378,7 @@ class AMGSolver:
         if self._previous is None:
             return False
         self._ml, self._previous = self._previous, None
-        self._its_at_build = None
+        self._per_digit_at_build = None
         return True
 
     def preconditioner(self):
@@ -372,9 +387,9 @@ class AMGSolver:
         def cycle(r):
             full = np.zeros(nf)
             full[free] = r
-            return ml.solve(full, x0=np.zeros(nf), tol=1e-30, maxiter=1, cycle="V")[free]
+            return ml.solve(full, x0=np.zeros(nf), tol=1e-30, maxiter=1, cycle="W")[free]
 
-        def apply(r):                       # one V-cycle per vector
+        def apply(r):                       # one W-cycle per vector
             return cycle(r) if r.ndim == 1 else np.column_stack([cycle(c) for c in r.T])
         return apply
 

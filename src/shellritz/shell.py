@@ -664,14 +664,26 @@ class Shell(Solvable):
 
     def _start_from(self, result):
         """Free DOFs from ``result`` (transfer.py; prescribed DOFs keep their
-        values); returns the result's t."""
+        values); returns the result's t and the gradient norm of the
+        reference state at that t, the force scale the relative tolerance
+        refers to (as for a solve from the reference state in one step; the
+        transferred state's own gradient is already small, and relative to
+        it Newton would be held to round-off)."""
         if not isinstance(result, Result):
             raise TypeError(f"start must be a shellritz Result (of Shell.solve), not {type(result).__name__}")
         if result.t is None:
             raise ValueError("start: the result has no equilibrium state (its solve failed at the start)")
         U = interpolate_state(result, self)
+        t = float(result.t)
+        self.set_parameter(t)
+        saved = self.save_point()
+        try:
+            scale = float(np.linalg.norm(self.evaluate(self.free_state(), 1)[1]))
+        except EvaluationError:            # the reference state is not admissible at t
+            scale = 0.0
+        self.restore_point(saved)
         self.U.reshape(-1)[self.free] = U.reshape(-1)[self.free]
-        return float(result.t)
+        return t, scale
 
 
 def _volume_terms(tri, r, mode):

@@ -385,7 +385,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             factorized = fast = False
             continue
         if not lin.direct:
-            rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
+            rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"], eta)
             setup += rebuilt
             if rebuilt and opts.verbose:
                 print(f"    AMG hierarchy rebuilt ({info['iterations']} CG iterations)", flush=True)
@@ -697,23 +697,27 @@ class _Counted:
         return self._problem.evaluate(x, mode)
 
 
-def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0):
+def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0, force_scale=0.0):
     """Follow the equilibrium from t_start to 1: adaptive steps in t
-    (opts.path == "load") or arc length (opts.path == "arclength")."""
+    (opts.path == "load") or arc length (opts.path == "arclength").
+    force_scale: the gradient norm the relative tolerance opts.rtol refers
+    to, at least (besides the loads and the gradient where each step
+    starts): for a start carried over from another mesh, that of the
+    reference state (its own gradient is already small)."""
     opts = opts or SolverOptions()
     history = SolveHistory()
     problem = _Counted(problem, history)
     lin = _Linear(problem, opts, history)
     try:
-        return _follow_path(problem, steps, opts, history, lin, min_dt, t_start)
+        return _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scale)
     finally:
         lin.release()
 
 
-def _follow_path(problem, steps, opts, history, lin, min_dt, t_start):
+def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scale):
     t = t_start
     problem.set_parameter(t)
-    g_ref = problem.load_scale()
+    g_ref = max(problem.load_scale(), force_scale)
     if not equilibrium(problem, t, opts, history, g_ref, lin):
         raise SolveError(f"no equilibrium at the start t={t}", last_t=None, history=history)
     history.steps.append((t, True))
@@ -950,7 +954,9 @@ class Solvable:
         (typically coarser): its state is carried onto this mesh
         (transfer.py) and Newton starts there, at the result's t (nested
         iteration: README "Scaling").  Solver options (SolverOptions, with
-        their defaults and meaning): rtol (relative gradient tolerance),
+        their defaults and meaning): rtol (relative gradient tolerance: to
+        the loads, to the gradient where a step starts and, with start, to
+        the gradient of the reference state at the result's t),
         max_iter (Newton iterations per step), linear ("auto" | "pardiso" |
         "superlu" | "amg", linalg.py), globalization ("trust-region" |
         "line-search"), watchdog (full Newton steps allowed uphill), path
@@ -971,21 +977,23 @@ class Solvable:
                             f"the options are {', '.join(sorted(known))}")
         opts = SolverOptions(verbose=verbose, **options)
         self._setup()
-        t_start = 0.0 if start is None else self._start_from(start)
+        t_start, force_scale = (0.0, 0.0) if start is None else self._start_from(start)
         self._monitor = (monitor if monitor is None or callable(monitor)
                          else np.atleast_1d(np.asarray(monitor, int)))
         t0 = time.perf_counter()
         if verbose:
             print(self._describe(), flush=True)
         try:
-            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt, t_start=t_start)
+            history = continuation(self, steps=steps, opts=opts, min_dt=min_dt, t_start=t_start,
+                                   force_scale=force_scale)
         except SolveError as exc:
             exc.result = self._result(exc.history, time.perf_counter() - t0, False, exc.last_t)
             raise
         return self._result(history, time.perf_counter() - t0, True, history.steps[-1][0])
 
     def _start_from(self, result):
-        """Carry ``result``'s state onto this engine; returns its t."""
+        """Carry ``result``'s state onto this engine; returns its t and the
+        force scale of the solve (continuation)."""
         raise TypeError(f"solve(start=...) is available for the triangle engine (Shell), "
                         f"not for {type(self).__name__}")
 
