@@ -49,10 +49,14 @@ AUTO_DIRECT_MAX_DOFS = 600_000
 # AMG: coarsening stops at this many block rows (pyamg counts blocks: the
 # coarse levels have one 12 x 12 block per aggregate, the near-null space
 # size), where SuperLU solves; at most 3,000 DOFs.  Measured on the 50k leaf
-# Hessian (226k DOFs): 3,000 blocks stopped at a dense 23,000-DOF level 1
-# whose SuperLU factor took 50 s and 0.6 GB (20 CG iterations, 0.44 s each);
-# 250 blocks give three levels, a 576-DOF coarse solve and, with W-cycles,
-# 56 CG iterations of 0.43 s (V-cycles: 77).
+# Hessian (226k DOFs, one CG solve to 1e-8, 2 threads): 3,000 blocks stopped
+# at a dense 23,000-DOF level 1 whose SuperLU factor took 50 s and 0.6 GB
+# (20 CG iterations); 250 blocks: three levels, a 576-DOF coarse solve, 77
+# CG iterations with V-cycles, 56 with W-cycles (0.43 s each).  The
+# energy-minimizing prolongation smoothing of degree 1 instead of 2: 43 CG
+# iterations, set-up 15.7 instead of 23 s, peak memory 1.28 instead of
+# 1.96 GB (the degree-2 pattern's temporaries); Jacobi smoothing: set-up
+# 5.5 s but 71 iterations.
 AMG_COARSE_BLOCKS = 250
 
 
@@ -338,7 +342,7 @@ class AMGSolver:
         A = self._embed(K).tobsr(blocksize=(self.block, self.block))
         opts = dict(symmetry="symmetric",
                     strength=("symmetric", {"theta": 0.0}),
-                    smooth=("energy", {"krylov": "cg", "maxiter": 4, "degree": 2, "weighting": "local"}),
+                    smooth=("energy", {"krylov": "cg", "maxiter": 4, "degree": 1, "weighting": "local"}),
                     presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     max_coarse=AMG_COARSE_BLOCKS, coarse_solver="splu")
