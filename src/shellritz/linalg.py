@@ -58,6 +58,18 @@ AUTO_DIRECT_MAX_DOFS = 600_000
 # 1.96 GB (the degree-2 pattern's temporaries); Jacobi smoothing: set-up
 # 5.5 s but 71 iterations.
 AMG_COARSE_BLOCKS = 250
+# ... except that a Hessian of at most this many nodal blocks (27,000 DOFs
+# of the triangle engine: sparse, cheap to factorize) is one level: the
+# coarse solver's factor of the Hessian the hierarchy was built on, kept as
+# the preconditioner until CG slows down (10-ring leaf of the stability map,
+# trust region: 26 Newton and 1,563 CG iterations, 3.9 s, against 28, 3,151
+# and 6.2 s with three levels).
+AMG_ONE_LEVEL_BLOCKS = 3000
+# the CG iterations a rebuild of the hierarchy is measured against are at
+# least these (AMGSolver.note_iterations; the 50k leaf from a nested start:
+# a first step cut on the trust-region boundary after one iteration made
+# the next solve, 15 iterations, rebuild the hierarchy for 22 s)
+REBUILD_MIN_ITS = 5
 
 
 class LinearSolverError(RuntimeError):
@@ -315,7 +327,7 @@ class AMGSolver:
         self.rebuild_growth = rebuild_growth
         self.options = dict(options or {})
         self._ml = self._previous = None
-        self._per_digit_at_build = None
+        self._its_at_build = None
         self.K = None
         self.builds = 0
 
@@ -345,32 +357,30 @@ class AMGSolver:
                     smooth=("energy", {"krylov": "cg", "maxiter": 4, "degree": 1, "weighting": "local"}),
                     presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
-                    max_coarse=AMG_COARSE_BLOCKS, coarse_solver="splu")
+                    max_coarse=(AMG_COARSE_BLOCKS if A.shape[0] > AMG_ONE_LEVEL_BLOCKS * self.block
+                                else AMG_ONE_LEVEL_BLOCKS),
+                    coarse_solver="splu")
         opts.update(self.options)
         with warnings.catch_warnings():
             # fewer near-null modes than DOFs per node (line engines): pyamg warns, on purpose here
             warnings.filterwarnings("ignore", message="Having less target vectors")
             ml = pyamg.smoothed_aggregation_solver(A, B=self.near_null(), **opts)
         self._previous, self._ml = self._ml, ml
-        self._per_digit_at_build = None
+        self._its_at_build = None
         self.builds += 1
 
-    def note_iterations(self, its, reason, rtol):
-        """After a CG solve to the relative residual rtol: rebuild the
-        hierarchy on the current Hessian if CG slowed down -- it needs more
-        than ``rebuild_growth`` times the iterations per digit of residual
-        reduction of the first solve after the last build (a count alone
-        grows with the Eisenstat-Walker forcing as Newton converges).  Exits
-        on the trust-region boundary tell no rate; on negative curvature the
-        W-cycle of an indefinite Hessian would be no SPD preconditioner: both
-        are left alone.  Returns the seconds spent rebuilding (0: kept)."""
-        if reason not in ("converged", "maxiter"):
+    def note_iterations(self, its, reason):
+        """After a CG solve: rebuild the hierarchy on the current Hessian if
+        CG slowed down -- more than ``rebuild_growth`` times the iterations
+        of the first solve after the last build (counted as at least
+        REBUILD_MIN_ITS: a first solve cut after an iteration or two on the
+        trust-region boundary says nothing) plus 5 -- without meeting
+        negative curvature (a cycle of an indefinite Hessian is no SPD
+        preconditioner).  Returns the seconds spent rebuilding (0: kept)."""
+        if self._its_at_build is None:
+            self._its_at_build = max(its, REBUILD_MIN_ITS)
             return 0.0
-        per_digit = max(its, 1) / max(-np.log10(rtol), 1.0)
-        if self._per_digit_at_build is None:
-            self._per_digit_at_build = per_digit
-            return 0.0
-        if per_digit > self.rebuild_growth * self._per_digit_at_build and its > 5:
+        if its > self.rebuild_growth * self._its_at_build + 5 and reason != "negative curvature":
             t0 = time.perf_counter()
             self._build(self.K)
             return time.perf_counter() - t0
@@ -382,7 +392,7 @@ class AMGSolver:
         if self._previous is None:
             return False
         self._ml, self._previous = self._previous, None
-        self._per_digit_at_build = None
+        self._its_at_build = None
         return True
 
     def preconditioner(self):

@@ -385,7 +385,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             factorized = fast = False
             continue
         if not lin.direct:
-            rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"], eta)
+            rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
             setup += rebuilt
             if rebuilt and opts.verbose:
                 print(f"    AMG hierarchy rebuilt ({info['iterations']} CG iterations)", flush=True)
