@@ -219,3 +219,32 @@ def test_amg_preconditions_a_plate_hessian():
     assert np.linalg.norm(A @ p - b) <= 1e-7 * np.linalg.norm(b)
     _, jac = steihaug_cg(lower_matvec(K), -b, lambda r: r / np.abs(A.diagonal()), rtol=1e-8, maxiter=400)
     assert info["iterations"] < 40 < jac["iterations"]
+
+
+def test_amg_embedding_is_the_symmetric_hessian_in_nodal_blocks():
+    """AMGSolver._embed writes the full symmetric matrix of the lower
+    triangle straight into 9 x 9 nodal blocks of the full numbering, the
+    fixed DOFs with the median |diagonal| as an identity row; equal to the
+    dense construction entry by entry."""
+    from shellritz.linalg import AMGSolver
+    rng = np.random.default_rng(3)
+    nodes, b = 7, 9
+    n_full = nodes * b
+    fixed = np.zeros(n_full, bool)
+    fixed[[0, 1, 2, 20, 40, 41]] = True           # some DOFs of nodes 0, 2 and 4
+    free = np.flatnonzero(~fixed)
+    links = {(i, i) for i in range(nodes)} | {(1, 0), (3, 1), (4, 2), (6, 0), (6, 5), (5, 3)}
+    D = np.zeros((n_full, n_full))
+    for i, j in links:
+        D[i * b:(i + 1) * b, j * b:(j + 1) * b] = rng.standard_normal((b, b))
+    D = D + D.T
+    F = D[np.ix_(free, free)]
+    K = sp.csr_matrix(np.tril(F))
+    solver = AMGSolver(len(free), (b, free, n_full, None, None))
+    A = solver._embed(K)
+    assert A.blocksize == (b, b)
+    d = np.abs(np.diag(F))
+    expected = np.zeros((n_full, n_full))
+    expected[np.ix_(free, free)] = F
+    expected[fixed, fixed] = np.median(d[d > 0])
+    assert np.array_equal(A.toarray(), expected)

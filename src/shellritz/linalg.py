@@ -35,6 +35,7 @@ Methods (``method=`` of :func:`make_linear_solver`):
 
 import time
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -52,11 +53,11 @@ AUTO_DIRECT_MAX_DOFS = 600_000
 # Hessian (226k DOFs, one CG solve to 1e-8, 2 threads): 3,000 blocks stopped
 # at a dense 23,000-DOF level 1 whose SuperLU factor took 50 s and 0.6 GB
 # (20 CG iterations); 250 blocks: three levels, a 576-DOF coarse solve, 77
-# CG iterations with V-cycles, 56 with W-cycles (0.43 s each).  The
-# energy-minimizing prolongation smoothing of degree 1 instead of 2: 43 CG
-# iterations, set-up 15.7 instead of 23 s, peak memory 1.28 instead of
-# 1.96 GB (the degree-2 pattern's temporaries); Jacobi smoothing: set-up
-# 5.5 s but 71 iterations.
+# CG iterations with V-cycles, 56 with W-cycles (0.43 s each).  Prolongation
+# smoothing: energy minimization of degree 2 (pyamg's choice for shells)
+# 56 iterations, set-up 23 s; of degree 1: 43, 15.7 s; Jacobi: 71, 5.5 s,
+# and the least memory: the set-up's temporaries beyond the Hessian peak at
+# 0.46 GB against 0.95 (degree 1), which decides at 1M triangles (24 GB).
 AMG_COARSE_BLOCKS = 250
 # ... except that a Hessian of at most this many nodal blocks (27,000 DOFs
 # of the triangle engine: sparse, cheap to factorize) is one level: the
@@ -66,9 +67,11 @@ AMG_COARSE_BLOCKS = 250
 # and 6.2 s with three levels).
 AMG_ONE_LEVEL_BLOCKS = 3000
 # the CG iterations a rebuild of the hierarchy is measured against are at
-# least these (AMGSolver.note_iterations; the 50k leaf from a nested start:
-# a first step cut on the trust-region boundary after one iteration made
-# the next solve, 15 iterations, rebuild the hierarchy for 22 s)
+# least these (AMGSolver.note_iterations: a first solve cut on the
+# trust-region boundary after one iteration would make any later one of 8
+# rebuild; not counting boundary solves at all made the thin panel of the
+# stability map take 461 instead of 365 Newton iterations).  A rebuild with
+# Jacobi prolongation smoothing costs about 13 CG iterations (50k leaf).
 REBUILD_MIN_ITS = 5
 
 
@@ -332,14 +335,20 @@ class AMGSolver:
         self.builds = 0
 
     def _embed(self, K):
-        A = symmetric_from_lower(K)
-        P = sp.csr_matrix((np.ones(self.n), (self.free_full, np.arange(self.n))),
-                          shape=(self.n_full, self.n))
-        fixed = np.ones(self.n_full, bool)
-        fixed[self.free_full] = False
-        d = np.abs(A.diagonal())
+        """The symmetric Hessian in the full nodal numbering as a BSR matrix
+        of nodal blocks, fixed DOFs with an identity row scaled to the median
+        diagonal, written straight from the lower triangle K
+        (``_lower_to_full_bsr``: the BSR is the only copy; the route through
+        SciPy's transpose, sum, selection products and conversion held about
+        six times K at its peak: 0.9 GB for the 50k leaf, and the 1M-triangle
+        Hessian's conversion alone outgrew 24 GB)."""
+        d = np.abs(K.diagonal())
         scale = np.median(d[d > 0]) if np.any(d > 0) else 1.0
-        return (P @ A @ P.T + sp.diags(np.where(fixed, scale, 0.0))).tocsr()
+        indptr, indices, data = _lower_to_full_bsr(K.indptr, K.indices, K.data, self.free_full,
+                                                   self.n_full, self.block, scale)
+        index_type = np.int32 if len(indices) < 2**31 else np.int64
+        return sp.bsr_matrix((data, indices.astype(index_type), indptr.astype(index_type)),
+                             shape=(self.n_full, self.n_full))
 
     def factorize(self, K):
         """Keep K (the hierarchy is built on the first one); no inertia."""
@@ -351,10 +360,10 @@ class AMGSolver:
     def _build(self, K):
         import warnings
         import pyamg
-        A = self._embed(K).tobsr(blocksize=(self.block, self.block))
+        A = self._embed(K)
         opts = dict(symmetry="symmetric",
                     strength=("symmetric", {"theta": 0.0}),
-                    smooth=("energy", {"krylov": "cg", "maxiter": 4, "degree": 1, "weighting": "local"}),
+                    smooth=("jacobi", {"omega": 4.0 / 3.0, "weighting": "local"}),
                     presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     max_coarse=(AMG_COARSE_BLOCKS if A.shape[0] > AMG_ONE_LEVEL_BLOCKS * self.block
@@ -412,6 +421,96 @@ class AMGSolver:
 
     def release(self):
         self._ml = self._previous = None
+
+
+@nb.njit(cache=True)
+def _lower_to_full_bsr(indptr, indices, data, free_full, n_full, b, scale):
+    """BSR (block size b) of the full symmetric matrix whose lower triangle
+    is the CSR (indptr, indices, data) over the free DOFs free_full (in
+    ascending order) of n_full DOFs; the fixed DOFs get ``scale`` on the
+    diagonal.  Returns (block indptr, block indices, data (blocks, b, b))."""
+    nb_rows = n_full // b
+    # block pattern of the lower triangle (a marker per block column), then
+    # its symmetric closure with the diagonal blocks
+    mark = np.full(nb_rows, -1, np.int64)
+    low_ptr = np.zeros(nb_rows + 1, np.int64)
+    for sweep in range(2):
+        if sweep == 1:
+            low_idx = np.empty(low_ptr[nb_rows], np.int64)
+            fill = low_ptr[:-1].copy()
+            mark[:] = -1
+        count = 0
+        i = 0
+        for bi in range(nb_rows):
+            while i < len(free_full) and free_full[i] // b == bi:
+                for k in range(indptr[i], indptr[i + 1]):
+                    bj = free_full[indices[k]] // b
+                    if mark[bj] != bi:
+                        mark[bj] = bi
+                        if sweep == 0:
+                            count += 1
+                        else:
+                            low_idx[fill[bi]] = bj
+                            fill[bi] += 1
+                i += 1
+            if sweep == 0:
+                low_ptr[bi + 1] = count
+    # full pattern: row bi holds the lower blocks (bi, bj <= bi), the
+    # mirrored (bj, bi) and its diagonal block
+    counts = np.zeros(nb_rows, np.int64)
+    for bi in range(nb_rows):
+        has_diag = False
+        for k in range(low_ptr[bi], low_ptr[bi + 1]):
+            bj = low_idx[k]
+            counts[bi] += 1
+            if bj != bi:
+                counts[bj] += 1
+            else:
+                has_diag = True
+        if not has_diag:
+            counts[bi] += 1
+    ptr = np.zeros(nb_rows + 1, np.int64)
+    for bi in range(nb_rows):
+        ptr[bi + 1] = ptr[bi] + counts[bi]
+    cols = np.empty(ptr[nb_rows], np.int64)
+    fill = ptr[:-1].copy()
+    for bi in range(nb_rows):
+        has_diag = False
+        for k in range(low_ptr[bi], low_ptr[bi + 1]):
+            bj = low_idx[k]
+            cols[fill[bi]] = bi if bj == bi else bj
+            fill[bi] += 1
+            if bj != bi:
+                cols[fill[bj]] = bi
+                fill[bj] += 1
+            else:
+                has_diag = True
+        if not has_diag:
+            cols[fill[bi]] = bi
+            fill[bi] += 1
+    for bi in range(nb_rows):
+        cols[ptr[bi]:ptr[bi + 1]] = np.sort(cols[ptr[bi]:ptr[bi + 1]])
+    # values: each lower entry and its mirror into their blocks
+    out = np.zeros((ptr[nb_rows], b, b))
+    for i in range(len(free_full)):
+        fi = free_full[i]
+        bi, r = fi // b, fi % b
+        for k in range(indptr[i], indptr[i + 1]):
+            fj = free_full[indices[k]]
+            bj, c = fj // b, fj % b
+            row = cols[ptr[bi]:ptr[bi + 1]]
+            out[ptr[bi] + np.searchsorted(row, bj), r, c] = data[k]
+            if fj != fi:
+                row = cols[ptr[bj]:ptr[bj + 1]]
+                out[ptr[bj] + np.searchsorted(row, bi), c, r] = data[k]
+    is_free = np.zeros(n_full, np.bool_)
+    is_free[free_full] = True
+    for f in range(n_full):
+        if not is_free[f]:
+            bi, r = f // b, f % b
+            row = cols[ptr[bi]:ptr[bi + 1]]
+            out[ptr[bi] + np.searchsorted(row, bi), r, r] = scale
+    return ptr, cols, out
 
 
 def make_linear_solver(method, n, indptr, indices, layout=None, singular=False):
