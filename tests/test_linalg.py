@@ -229,22 +229,6 @@ def test_amg_preconditions_a_plate_hessian(levels, monkeypatch):
     assert info["iterations"] < 40 < jac["iterations"]
 
 
-def test_amg_releases_the_previous_hierarchy_after_a_good_solve():
-    """A rebuilt hierarchy keeps the previous one only until its first solve
-    has gone through (to step back if it is not SPD): at 1M triangles a
-    hierarchy is 8.5 GB."""
-    s = _plate(8)
-    _, g, K = s.evaluate(s.free_state(), 2)
-    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, s.block_layout())
-    amg.factorize(K)
-    first = amg._ml
-    assert amg.note_iterations(3, "converged") == 0.0        # the baseline: 5 iterations
-    assert amg.note_iterations(16, "converged") > 0.0        # slowed down: rebuilt
-    assert amg._ml is not first and amg._previous is first
-    amg.note_iterations(4, "converged")                      # the new one's first solve
-    assert amg._previous is None and not amg.restore_previous()
-
-
 def test_amg_embedding_is_the_symmetric_hessian_in_nodal_blocks():
     """AMGSolver._embed writes the full symmetric matrix of the lower
     triangle straight into 9 x 9 nodal blocks of the full numbering, the

@@ -387,10 +387,7 @@ class AMGSolver:
         negative curvature (a cycle of an indefinite Hessian is no SPD
         preconditioner).  Returns the seconds spent rebuilding (0: kept)."""
         if self._its_at_build is None:
-            # the first solve with this hierarchy went through: the one before
-            # it (kept to step back to) is released (1M triangles: 8.5 GB)
             self._its_at_build = max(its, REBUILD_MIN_ITS)
-            self._previous = None
             return 0.0
         if its > self.rebuild_growth * self._its_at_build + 5 and reason != "negative curvature":
             t0 = time.perf_counter()
@@ -399,8 +396,11 @@ class AMGSolver:
         return 0.0
 
     def restore_previous(self):
-        """Back to the previous hierarchy (the rebuilt one was not SPD in
-        its first solve); False if there is none."""
+        """Back to the previous hierarchy (the rebuilt one was not SPD: this
+        can happen in any later solve, so the previous one is kept -- the
+        stability map's thin panel took 693 instead of 365 Newton iterations
+        when it was released after the new one's first solve); False if
+        there is none."""
         if self._previous is None:
             return False
         self._ml, self._previous = self._previous, None
