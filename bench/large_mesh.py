@@ -23,10 +23,7 @@ import json  # noqa: E402
 import resource  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-import warnings  # noqa: E402
 from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -79,9 +76,7 @@ def main():
     amg = AMGSolver(len(x), shell.block_layout())
 
     def build():
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            amg.factorize(K)
+        amg.factorize(K)
         return amg.preconditioner()
     precond = phase("AMG hierarchy", build)
     out["amg_levels"] = [dict(unknowns=int(lv.A.shape[0]), nonzeros=int(lv.A.nnz)) for lv in amg._ml.levels]

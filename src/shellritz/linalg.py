@@ -63,8 +63,9 @@ AMG_COARSE_BLOCKS = 250
 # of the triangle engine: sparse, cheap to factorize) is one level: the
 # coarse solver's factor of the Hessian the hierarchy was built on, kept as
 # the preconditioner until CG slows down (10-ring leaf of the stability map,
-# trust region: 26 Newton and 1,563 CG iterations, 3.9 s, against 28, 3,151
-# and 6.2 s with three levels).
+# trust region: 29 Newton and 227 CG iterations, 2.1 s; coarsened to three
+# levels 560 Newton iterations: hierarchies rebuilt on its indefinite
+# Hessians keep turning out not SPD).
 AMG_ONE_LEVEL_BLOCKS = 3000
 # the CG iterations a rebuild of the hierarchy is measured against are at
 # least these (AMGSolver.note_iterations: a first solve cut on the
@@ -340,8 +341,8 @@ class AMGSolver:
         diagonal, written straight from the lower triangle K
         (``_lower_to_full_bsr``: the BSR is the only copy; the route through
         SciPy's transpose, sum, selection products and conversion held about
-        six times K at its peak: 0.9 GB for the 50k leaf, and the 1M-triangle
-        Hessian's conversion alone outgrew 24 GB)."""
+        six times K at its peak: 0.9 GB for the 50k leaf, about 18 GB for
+        the 1M-triangle one)."""
         d = np.abs(K.diagonal())
         scale = np.median(d[d > 0]) if np.any(d > 0) else 1.0
         indptr, indices, data = _lower_to_full_bsr(K.indptr, K.indices, K.data, self.free_full,
@@ -433,64 +434,54 @@ def _lower_to_full_bsr(indptr, indices, data, free_full, n_full, b, scale):
     ascending order) of n_full DOFs; the fixed DOFs get ``scale`` on the
     diagonal.  Returns (block indptr, block indices, data (blocks, b, b))."""
     nb_rows = n_full // b
-    # block pattern of the lower triangle (a marker per block column), then
-    # its symmetric closure with the diagonal blocks
+    # block columns bj <= bi of each block row of the lower triangle, the
+    # diagonal block always (it holds the fixed DOFs' rows), found with a
+    # marker per block column: counted in the first sweep, written in the second
     mark = np.full(nb_rows, -1, np.int64)
     low_ptr = np.zeros(nb_rows + 1, np.int64)
+    low_idx = np.empty(0, np.int64)
     for sweep in range(2):
-        if sweep == 1:
-            low_idx = np.empty(low_ptr[nb_rows], np.int64)
-            fill = low_ptr[:-1].copy()
-            mark[:] = -1
-        count = 0
+        mark[:] = -1
         i = 0
         for bi in range(nb_rows):
+            at = low_ptr[bi]
+            mark[bi] = bi
+            if sweep == 1:
+                low_idx[at] = bi
+            at += 1
             while i < len(free_full) and free_full[i] // b == bi:
                 for k in range(indptr[i], indptr[i + 1]):
                     bj = free_full[indices[k]] // b
                     if mark[bj] != bi:
                         mark[bj] = bi
-                        if sweep == 0:
-                            count += 1
-                        else:
-                            low_idx[fill[bi]] = bj
-                            fill[bi] += 1
+                        if sweep == 1:
+                            low_idx[at] = bj
+                        at += 1
                 i += 1
             if sweep == 0:
-                low_ptr[bi + 1] = count
-    # full pattern: row bi holds the lower blocks (bi, bj <= bi), the
-    # mirrored (bj, bi) and its diagonal block
-    counts = np.zeros(nb_rows, np.int64)
-    for bi in range(nb_rows):
-        has_diag = False
-        for k in range(low_ptr[bi], low_ptr[bi + 1]):
-            bj = low_idx[k]
-            counts[bi] += 1
-            if bj != bi:
-                counts[bj] += 1
-            else:
-                has_diag = True
-        if not has_diag:
-            counts[bi] += 1
+                low_ptr[bi + 1] = at
+        if sweep == 0:
+            low_idx = np.empty(low_ptr[nb_rows], np.int64)
+    # full pattern: row bi holds its lower blocks and the mirrors (bj, bi)
+    # of the lower blocks below the diagonal
     ptr = np.zeros(nb_rows + 1, np.int64)
     for bi in range(nb_rows):
-        ptr[bi + 1] = ptr[bi] + counts[bi]
+        for k in range(low_ptr[bi], low_ptr[bi + 1]):
+            ptr[bi + 1] += 1
+            if low_idx[k] != bi:
+                ptr[low_idx[k] + 1] += 1
+    for bi in range(nb_rows):
+        ptr[bi + 1] += ptr[bi]
     cols = np.empty(ptr[nb_rows], np.int64)
     fill = ptr[:-1].copy()
     for bi in range(nb_rows):
-        has_diag = False
         for k in range(low_ptr[bi], low_ptr[bi + 1]):
             bj = low_idx[k]
-            cols[fill[bi]] = bi if bj == bi else bj
+            cols[fill[bi]] = bj
             fill[bi] += 1
             if bj != bi:
                 cols[fill[bj]] = bi
                 fill[bj] += 1
-            else:
-                has_diag = True
-        if not has_diag:
-            cols[fill[bi]] = bi
-            fill[bi] += 1
     for bi in range(nb_rows):
         cols[ptr[bi]:ptr[bi + 1]] = np.sort(cols[ptr[bi]:ptr[bi + 1]])
     # values: each lower entry and its mirror into their blocks
@@ -501,18 +492,15 @@ def _lower_to_full_bsr(indptr, indices, data, free_full, n_full, b, scale):
         for k in range(indptr[i], indptr[i + 1]):
             fj = free_full[indices[k]]
             bj, c = fj // b, fj % b
-            row = cols[ptr[bi]:ptr[bi + 1]]
-            out[ptr[bi] + np.searchsorted(row, bj), r, c] = data[k]
+            out[ptr[bi] + np.searchsorted(cols[ptr[bi]:ptr[bi + 1]], bj), r, c] = data[k]
             if fj != fi:
-                row = cols[ptr[bj]:ptr[bj + 1]]
-                out[ptr[bj] + np.searchsorted(row, bi), c, r] = data[k]
+                out[ptr[bj] + np.searchsorted(cols[ptr[bj]:ptr[bj + 1]], bi), c, r] = data[k]
     is_free = np.zeros(n_full, np.bool_)
     is_free[free_full] = True
     for f in range(n_full):
         if not is_free[f]:
             bi, r = f // b, f % b
-            row = cols[ptr[bi]:ptr[bi + 1]]
-            out[ptr[bi] + np.searchsorted(row, bi), r, r] = scale
+            out[ptr[bi] + np.searchsorted(cols[ptr[bi]:ptr[bi + 1]], bi), r, r] = scale
     return ptr, cols, out
 
 
