@@ -256,3 +256,29 @@ def test_amg_embedding_is_the_symmetric_hessian_in_nodal_blocks():
     expected[np.ix_(free, free)] = F
     expected[fixed, fixed] = np.median(d[d > 0])
     assert np.array_equal(A.toarray(), expected)
+
+
+@pytest.mark.parametrize("room", [True, False])
+def test_amg_rebuild_keeps_one_previous_hierarchy_where_two_fit(room, monkeypatch):
+    """A rebuild of the AMG hierarchy keeps the one it replaces as the
+    fallback (restore_previous) -- and only that one -- where memory holds
+    both; where it does not (the 1M-triangle leaf: 8.5 GB per hierarchy) the
+    current one is released before the new one is built, said in
+    ``released_previous``, and there is nothing to restore."""
+    import shellritz.linalg as linalg
+    monkeypatch.setattr(linalg, "_available_memory", lambda: float("inf") if room else 0)
+    s = _plate(8)
+    _, _, K = s.evaluate(s.free_state(), 2)
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, s.block_layout())
+    amg.factorize(K)
+    first = amg._ml
+    assert linalg._hierarchy_bytes(first) >= K.data.nbytes      # holds at least the Hessian
+    amg.note_iterations(5, "converged")
+    assert amg.note_iterations(5 * amg.rebuild_growth + 6, "converged") > 0     # slowed down: rebuilt
+    assert amg.builds == 2 and amg._ml is not first
+    assert amg.released_previous == (not room)
+    assert (amg._previous is first) == room
+    amg.note_iterations(5, "converged")
+    amg.note_iterations(5 * amg.rebuild_growth + 6, "converged")       # a third build drops the first
+    assert amg._previous is not first
+    assert amg.restore_previous() == room

@@ -33,6 +33,7 @@ Methods (``method=`` of :func:`make_linear_solver`):
     crossover: bench/scaling.py, README "Solver").
 """
 
+import os
 import time
 
 import numba as nb
@@ -319,7 +320,7 @@ class AMGSolver:
     bending modes).  The hierarchy is built on the first Hessian (the
     reference state) and rebuilt on the current one when CG slows down
     (``note_iterations``); if a rebuilt one turns out not SPD, the previous
-    hierarchy comes back.
+    hierarchy comes back (kept where memory holds two hierarchies).
     """
 
     direct = False
@@ -334,6 +335,7 @@ class AMGSolver:
         self._its_at_build = None
         self.K = None
         self.builds = 0
+        self.released_previous = False
 
     def _embed(self, K):
         """The symmetric Hessian in the full nodal numbering as a BSR matrix
@@ -361,6 +363,14 @@ class AMGSolver:
     def _build(self, K):
         import warnings
         import pyamg
+        # a rebuild replaces the previous hierarchy: only the current one is
+        # kept as a fallback, and not even that where two would not fit in
+        # memory (1M-triangle leaf: 8.5 GB each, set-up peak 5 GB more)
+        self._previous = None
+        self.released_previous = (self._ml is not None
+                                  and 2 * _hierarchy_bytes(self._ml) > _available_memory())
+        if self.released_previous:
+            self._ml = None
         A = self._embed(K)
         opts = dict(symmetry="symmetric",
                     strength=("symmetric", {"theta": 0.0}),
@@ -425,6 +435,33 @@ class AMGSolver:
 
     def release(self):
         self._ml = self._previous = None
+
+
+def _hierarchy_bytes(ml):
+    """Bytes held by the matrices of a pyamg hierarchy."""
+    total = 0
+    for level in ml.levels:
+        for name in ("A", "P", "R"):
+            M = getattr(level, name, None)
+            if sp.issparse(M):
+                total += M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
+    return total
+
+
+def _available_memory():
+    """Bytes of memory the process can still use (Linux: MemAvailable;
+    elsewhere the free physical pages; unknown: unlimited)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return float("inf")
 
 
 @nb.njit(cache=True)

@@ -387,8 +387,13 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
         if not lin.direct:
             rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
             setup += rebuilt
-            if rebuilt and opts.verbose:
-                print(f"    AMG hierarchy rebuilt ({info['iterations']} CG iterations)", flush=True)
+            if rebuilt:
+                note = (f"t={t:.4g} it={it}: AMG hierarchy rebuilt ({info['iterations']} CG iterations)"
+                        + ("; the previous one released first: no memory for two"
+                           if lin.solver.released_previous else ""))
+                history.notes.append(note)
+                if opts.verbose:
+                    print("    " + note, flush=True)
             lin.amg_failures = 0 if info["reason"] != "maxiter" else lin.amg_failures + 1
             if lin.amg_failures >= 2:
                 negative, more = lin.fall_back_to_direct(K, f"CG reached {opts.max_cg} iterations twice")
