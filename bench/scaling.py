@@ -26,8 +26,11 @@ solve_in_assemblies.
 Writes bench/results/scaling.json (rows: n_triangles, dofs, solver, wall_s,
 assembly_s, solve_in_assemblies, peak_mem_gb, newton_its, krylov_its,
 krylov_per_newton, factorizations, nested_levels, energy, grad_rel (final |g| over
-that of the flat disc at t = 1), stable, converged, error) and
-bench/results/scaling.png.
+that of the flat disc at t = 1), stable, converged, error; for the AMG methods
+also amg_cg_1e8_its: CG iterations to a relative residual of 1e-8 on the
+Hessian at the solution with a hierarchy built on it, the measure of the
+preconditioner apart from the Newton forcing terms, with amg_levels,
+amg_setup_s, amg_cg_1e8_s) and bench/results/scaling.png.
 
 Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested] [--repeats 3] [--time-limit 1200]
       python bench/scaling.py --quick        (rings 8 and 16)
@@ -108,6 +111,30 @@ row.update(dofs=int(len(x)), assembly_s=float(np.median(times)), converged=conve
            setup_s=float(sum(i.setup_s for i in its)), linear_solve_s=float(sum(i.solve_s for i in its)),
            energy=float(E), stable=h.stable, notes=h.notes[:5], linear_used=h.linear,
            peak_mem_gb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20)
+if solver.startswith("amg") and converged:
+    # the preconditioner's quality apart from the Newton forcing terms (which
+    # set a different CG tolerance per step): CG iterations to a relative
+    # residual of 1e-8 for a fixed random right side (rigid motions projected
+    # out), one W-cycle of a hierarchy built on the Hessian at the solution
+    from shellritz.linalg import (free_rigid_modes, lower_matvec, make_linear_solver, projector,
+                                  steihaug_cg)
+    del res, start
+    layout = shell.block_layout()
+    project = projector(free_rigid_modes(layout))
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, layout)
+    t = time.perf_counter()
+    amg.factorize(K)
+    row["amg_setup_s"] = time.perf_counter() - t
+    row["amg_levels"] = len(amg._ml.levels)
+    b = np.random.default_rng(0).standard_normal(K.shape[0])
+    b = project(b) if project is not None else b
+    t = time.perf_counter()
+    _, info = steihaug_cg(lower_matvec(K), -b, amg.preconditioner(), rtol=1e-8, maxiter=1000,
+                          project=project)
+    row.update(amg_cg_1e8_its=info["iterations"], amg_cg_1e8_reason=info["reason"],
+               amg_cg_1e8_s=time.perf_counter() - t)
+    amg.release()
+    del amg
 # the final gradient relative to that of the reference (flat) state at t = 1,
 # the scale rtol refers to for every method (solve(start=) included)
 ref = leaf(rings)
