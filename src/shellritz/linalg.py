@@ -77,6 +77,11 @@ AMG_ONE_LEVEL_BLOCKS = 3000
 REBUILD_MIN_ITS = 5
 
 
+def amg_is_one_level(n_full, block):
+    """A hierarchy of this many DOFs stays one level (AMG_ONE_LEVEL_BLOCKS)."""
+    return n_full <= AMG_ONE_LEVEL_BLOCKS * block
+
+
 class LinearSolverError(RuntimeError):
     """A linear solve could not be done (message says which method and why)."""
 
@@ -353,6 +358,10 @@ class AMGSolver:
         return sp.bsr_matrix((data, indices.astype(index_type), indptr.astype(index_type)),
                              shape=(self.n_full, self.n_full))
 
+    @property
+    def one_level(self):
+        return amg_is_one_level(self.n_full, self.block)
+
     def factorize(self, K):
         """Keep K (the hierarchy is built on the first one); no inertia."""
         self.K = K
@@ -377,8 +386,7 @@ class AMGSolver:
                     smooth=("jacobi", {"omega": 4.0 / 3.0, "weighting": "local"}),
                     presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
-                    max_coarse=(AMG_COARSE_BLOCKS if A.shape[0] > AMG_ONE_LEVEL_BLOCKS * self.block
-                                else AMG_ONE_LEVEL_BLOCKS),
+                    max_coarse=AMG_ONE_LEVEL_BLOCKS if self.one_level else AMG_COARSE_BLOCKS,
                     coarse_solver="splu")
         opts.update(self.options)
         with warnings.catch_warnings():

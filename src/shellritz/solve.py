@@ -46,8 +46,8 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .linalg import (CGPath, LinearSolverError, jacobi, lower_matvec, make_linear_solver, resolve_method,
-                     free_rigid_modes, projector, steihaug_cg)
+from .linalg import (CGPath, LinearSolverError, amg_is_one_level, free_rigid_modes, jacobi,
+                     lower_matvec, make_linear_solver, projector, resolve_method, steihaug_cg)
 
 GLOBALIZATIONS = ("auto", "trust-region", "line-search")
 PATHS = ("load", "arclength")
@@ -80,8 +80,8 @@ class SolverOptions:
     max_iter: int = 40          # Newton iterations per continuation step
     verbose: bool = True
     linear: str = "auto"        # linalg.METHODS
-    globalization: str = "auto"   # "trust-region" | "line-search"; auto: trust region with a
-    #                             direct linear method, line search with AMG (_uses_trust_region)
+    globalization: str = "auto"   # "trust-region" | "line-search"; auto: line search with a
+    #                             multilevel AMG hierarchy, else trust region (_uses_trust_region)
     path: str = "load"          # "load": adaptive steps in t; "arclength": passes limit points
     stability: str = "auto"     # "inertia" (direct methods), "eigen" (+ lowest eigenpairs), "off";
     #                             auto: inertia with a direct method, off with AMG
@@ -270,20 +270,25 @@ REUSE_MAX_CG = 10
 
 
 def _uses_trust_region(problem, opts, lin, n):
-    """Globalization "auto": the trust region with a direct linear method,
-    the line search with AMG.  Measured (README "Solver"): with PARDISO the
-    trust region takes fewer Newton iterations on every scene of the
-    stability map (leaf 14 vs 24, thin panel 129 vs 169) and on the
-    32-ring leaf from the flat disc 18 vs 240; with AMG the line search
-    takes as many or fewer (leaf 29 vs 29, thin panel 284 vs 365, disc 6
-    vs 17) and on the 32-ring leaf, where the hierarchy has three levels,
-    23 vs 328 (steps along the negative curvature of a W-cycle's directions
-    to the boundary of the region are rejected over and over)."""
+    """Globalization "auto": the line search with a multilevel AMG
+    hierarchy, else (a factorization, or AMG of one level: the factor of an
+    earlier Hessian, as the direct path's last positive definite one) the
+    trust region.  Measured (README "Solver", bench/scaling.py, the
+    stability map): on the 32-ring leaf from the flat disc (three AMG
+    levels) AMG took 23 Newton iterations with the line search and 328 with
+    the trust region, and the 12k leaf 67.6 s with the line search against
+    more than 7 minutes; with PARDISO the trust region takes fewer
+    iterations everywhere (32-ring leaf 18 against 240), and so does
+    one-level AMG in time (1.5k leaf 6.9 s against 19.7 s, 10-ring leaf of
+    the map 2.2 against 4.0 s)."""
     if opts.globalization != "auto":
         return opts.globalization == "trust-region"
     if lin.solver is not None:
-        return lin.solver.direct
-    return resolve_method(opts.linear, n, has_blocks=hasattr(problem, "block_layout")) != "amg"
+        return lin.solver.direct or lin.solver.one_level
+    if resolve_method(opts.linear, n, has_blocks=hasattr(problem, "block_layout")) != "amg":
+        return True
+    block, _, n_full, _, _ = problem.block_layout()
+    return amg_is_one_level(n_full, block)
 
 
 def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
@@ -982,8 +987,8 @@ class Solvable:
         the gradient of the reference state at the result's t),
         max_iter (Newton iterations per step), linear ("auto" | "pardiso" |
         "superlu" | "amg", linalg.py), globalization ("auto" | "trust-region" |
-        "line-search"; auto: trust region with a direct method, line search
-        with AMG), watchdog (full Newton steps allowed uphill), path
+        "line-search"; auto: the line search with a multilevel AMG
+        hierarchy, else the trust region), watchdog (full Newton steps allowed uphill), path
         ("load" | "arclength": passes limit points, the path is in
         ``result.history.path`` and ``history.write_path(csv)``), stability
         ("auto" | "inertia" | "eigen" | "off"), escape (leave unstable
