@@ -134,7 +134,6 @@ if solver.startswith("amg") and converged:
     row.update(amg_cg_1e8_its=info["iterations"], amg_cg_1e8_reason=info["reason"],
                amg_cg_1e8_s=time.perf_counter() - t)
     amg.release()
-    del amg
 # the final gradient relative to that of the reference (flat) state at t = 1,
 # the scale rtol refers to for every method (solve(start=) included)
 ref = leaf(rings)

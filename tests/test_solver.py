@@ -214,7 +214,7 @@ def test_auto_globalization_is_the_line_search_with_multilevel_amg_else_the_trus
             monkeypatch.setattr(linalg, "AMG_ONE_LEVEL_BLOCKS", 0)
         res = leaf(10).solve(verbose=False, rtol=1e-8, linear=linear)
         its = res.history.iterations
-        assert its[0].linear == ("amg" if linear == "amg" else res.history.linear)
+        assert its[0].linear == "amg" if linear == "amg" else its[0].linear in ("pardiso", "superlu")
         radius_nan = [np.isnan(it.radius) for it in its if it.linear == its[0].linear]
         assert all(radius_nan) if levels == "several" else not any(radius_nan)
         energy = energy or its[-1].energy

@@ -77,11 +77,6 @@ AMG_ONE_LEVEL_BLOCKS = 3000
 REBUILD_MIN_ITS = 5
 
 
-def amg_is_one_level(n_full, block):
-    """A hierarchy of this many DOFs stays one level (AMG_ONE_LEVEL_BLOCKS)."""
-    return n_full <= AMG_ONE_LEVEL_BLOCKS * block
-
-
 class LinearSolverError(RuntimeError):
     """A linear solve could not be done (message says which method and why)."""
 
@@ -360,7 +355,8 @@ class AMGSolver:
 
     @property
     def one_level(self):
-        return amg_is_one_level(self.n_full, self.block)
+        """The hierarchy stays one level (AMG_ONE_LEVEL_BLOCKS)."""
+        return self.n_full <= AMG_ONE_LEVEL_BLOCKS * self.block
 
     def factorize(self, K):
         """Keep K (the hierarchy is built on the first one); no inertia."""

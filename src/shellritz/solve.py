@@ -46,8 +46,8 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .linalg import (CGPath, LinearSolverError, amg_is_one_level, free_rigid_modes, jacobi,
-                     lower_matvec, make_linear_solver, projector, resolve_method, steihaug_cg)
+from .linalg import (CGPath, LinearSolverError, free_rigid_modes, jacobi, lower_matvec,
+                     make_linear_solver, projector, resolve_method, steihaug_cg)
 
 GLOBALIZATIONS = ("auto", "trust-region", "line-search")
 PATHS = ("load", "arclength")
@@ -269,7 +269,7 @@ REUSE_MIN_DOFS = 150_000
 REUSE_MAX_CG = 10
 
 
-def _uses_trust_region(problem, opts, lin, n):
+def _uses_trust_region(opts, solver):
     """Globalization "auto": the line search with a multilevel AMG
     hierarchy, else (a factorization, or AMG of one level: the factor of an
     earlier Hessian, as the direct path's last positive definite one) the
@@ -283,12 +283,7 @@ def _uses_trust_region(problem, opts, lin, n):
     the map 2.2 against 4.0 s)."""
     if opts.globalization != "auto":
         return opts.globalization == "trust-region"
-    if lin.solver is not None:
-        return lin.solver.direct or lin.solver.one_level
-    if resolve_method(opts.linear, n, has_blocks=hasattr(problem, "block_layout")) != "amg":
-        return True
-    block, _, n_full, _, _ = problem.block_layout()
-    return amg_is_one_level(n_full, block)
+    return solver.direct or solver.one_level
 
 
 def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
@@ -315,7 +310,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
     # state has no terms to measure it by)
     noise = lambda E: 1e3 * np.finfo(float).eps * max(problem.energy_magnitude(), abs(E),
                                                       stiffest * size * size)
-    trust = _uses_trust_region(problem, opts, lin, len(x))
+    trust = None                # trust region or line search: decided at the first factorization
     radius = np.inf
     last_step = np.inf
     gnorms, energies = [gnorm], [E]
@@ -360,6 +355,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             else:
                 negative, setup = lin.factorize(K)
             factorized = True
+        if trust is None:
+            trust = _uses_trust_region(opts, lin.solver)
         exact = lin.solver.current_is_positive_definite()
         pd_run, pd_since = (pd_run + 1, pd_since or gnorm) if exact else (0, None)
         if may_cut and pd_run > SLOW_NEWTON and gnorm > 1e-2 * pd_since:
