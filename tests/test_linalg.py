@@ -84,6 +84,51 @@ def test_singular_hessian_factorizes_and_counts_no_negative(method):
     np.testing.assert_allclose(P(solver.preconditioner()(b)), P(np.linalg.solve(Areg, b)), rtol=1e-8)
 
 
+needs_pardiso = pytest.mark.skipif(not pardiso_available(), reason="pypardiso not installed")
+
+
+@needs_pardiso
+@pytest.mark.parametrize("n_negative", [0, 2])
+def test_single_precision_factor_refined_solves_and_double_inertia(n_negative):
+    """factor_precision 'single': the factor is single precision (one
+    triangular solve leaves a residual far above double round-off: 1e-9 to
+    1e-6 here, condition number 1e3), its inertia is right where the
+    eigenvalues are well away from zero, the refined solves reach 1e-12, CG
+    preconditioned by it reaches 1e-10 in a few iterations, and the inertia
+    asked for exactly comes from a double factorization (a third slot)."""
+    ev = np.geomspace(1e-3, 1.0, 40)
+    ev[:n_negative] *= -1
+    A = random_symmetric(40, ev, seed=7)
+    K = lower(A)
+    solver = DirectSolver("pardiso", 40, K.indptr, K.indices, single=True)
+    assert solver.factorize(K) == n_negative
+    b = np.random.default_rng(1).standard_normal(40)
+    once = solver._slots[solver._current].solve(b)
+    assert np.linalg.norm(A @ once - b) > 1e-9 * np.linalg.norm(b)
+    assert np.linalg.norm(A @ solver.solve(b) - b) <= 1e-12 * np.linalg.norm(b)
+    if n_negative == 0:
+        p, info = steihaug_cg(lower_matvec(K), -b, solver.preconditioner(), rtol=1e-10)
+        assert info["reason"] == "converged" and info["iterations"] <= 4
+    assert solver.factorize(K, exact_inertia=True) == n_negative
+    assert len(solver._slots) == 3 and solver._current == 2
+    assert np.linalg.norm(A @ solver._slots[2].solve(b) - b) <= 1e-12 * np.linalg.norm(b)
+    solver.release()
+
+
+def test_factor_precision_choice_and_errors():
+    A = random_symmetric(12, np.linspace(1.0, 2.0, 12))
+    K = lower(A)
+    make = lambda method, precision: make_linear_solver(method, 12, K.indptr, K.indices,
+                                                        precision=precision)
+    assert not make("superlu", "double").single
+    with pytest.raises(LinearSolverError, match="single-precision factorization needs 'pardiso'"):
+        make("superlu", "single")
+    with pytest.raises(ValueError, match="choose one of double, single"):
+        make("superlu", "half")
+    if pardiso_available():
+        assert make("pardiso", "single").single and not make("pardiso", "double").single
+
+
 def test_symmetric_from_lower():
     A = random_symmetric(7, np.arange(1.0, 8.0))
     np.testing.assert_array_equal(symmetric_from_lower(lower(A)).toarray(), np.tril(A) + np.tril(A, -1).T)

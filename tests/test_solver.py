@@ -158,6 +158,29 @@ def test_fast_newton_steps_reuse_the_previous_factorization():
     assert always.stable and not always.notes
 
 
+@pytest.mark.skipif(not pardiso_available(), reason="pypardiso not installed")
+def test_single_precision_factorizations_reach_the_same_equilibrium(monkeypatch):
+    """factor_precision="single": the 16-ring leaf (free rigid motions: regularized factors)
+    takes the same Newton iterations to the same equilibrium (energy to
+    1e-10) with more CG iterations, the stability inertia from a double
+    factorization; where CG preconditioned by the single factor of a
+    positive definite Hessian misses SINGLE_MAX_CG iterations (here forced
+    by a limit of 1) the solver says so and goes on in double precision."""
+    import shellritz.solve as solve_module
+    double = leaf(16).solve(verbose=False, factor_precision="double").history
+    single = leaf(16).solve(verbose=False, factor_precision="single").history
+    assert any("single precision" in n for n in single.notes)
+    assert len(single.iterations) == len(double.iterations)
+    assert sum(i.krylov_its for i in single.iterations) > sum(i.krylov_its for i in double.iterations)
+    assert single.iterations[-1].energy == pytest.approx(double.iterations[-1].energy, rel=1e-10)
+    assert single.stable and double.stable
+    monkeypatch.setattr(solve_module, "SINGLE_MAX_CG", 1)
+    fallback = leaf(16).solve(verbose=False, factor_precision="single").history
+    assert any("reached 1 iterations" in n and "double precision" in n for n in fallback.notes)
+    assert fallback.iterations[-1].energy == pytest.approx(double.iterations[-1].energy, rel=1e-10)
+    assert fallback.stable
+
+
 @pytest.mark.parametrize("method", ["pardiso", "superlu"])
 def test_a_solve_frees_its_factorizations(monkeypatch, method):
     """MKL keeps PARDISO's factors until told to free them: before this was
@@ -275,6 +298,10 @@ def test_options_are_checked_with_clear_errors():
         shell.solve(tolerance=1e-8, verbose=False)
     with pytest.raises(ValueError, match="rtol must be positive"):
         shell.solve(rtol=-1.0, verbose=False)
+    with pytest.raises(ValueError, match="factor_precision='half': choose one of double, single"):
+        shell.solve(factor_precision="half", verbose=False)
+    with pytest.raises(ValueError, match="factor_precision='single' with path='arclength'"):
+        shell.solve(factor_precision="single", path="arclength", verbose=False)
 
 
 def test_arc_length_needs_a_direct_solver():

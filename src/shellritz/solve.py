@@ -46,8 +46,8 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .linalg import (CGPath, LinearSolverError, free_rigid_modes, jacobi, lower_matvec,
-                     make_linear_solver, projector, resolve_method, steihaug_cg)
+from .linalg import (PRECISIONS, CGPath, LinearSolverError, free_rigid_modes, jacobi,
+                     lower_matvec, make_linear_solver, projector, resolve_method, steihaug_cg)
 
 GLOBALIZATIONS = ("auto", "trust-region", "line-search")
 PATHS = ("load", "arclength")
@@ -88,6 +88,9 @@ class SolverOptions:
     reuse_factorization: str = "auto"   # solve fast-converging Newton steps with the previous
     #                             factorization: "auto" from REUSE_MIN_DOFS free DOFs on,
     #                             "always", "never" (direct methods)
+    factor_precision: str = "double"   # of the direct factorizations; "single" (PARDISO:
+    #                             a third less memory per factor, preconditioner of the CG,
+    #                             refined solves, the stability inertia in double; linalg.py)
     escape: bool = True         # leave an unstable equilibrium along its most unstable mode
     max_escapes: int = 8        # per continuation step
     armijo: float = 1e-4
@@ -101,10 +104,14 @@ class SolverOptions:
 
     def __post_init__(self):
         for name, allowed in (("globalization", GLOBALIZATIONS), ("path", PATHS),
-                              ("stability", STABILITY), ("reuse_factorization", REUSE)):
+                              ("stability", STABILITY), ("reuse_factorization", REUSE),
+                              ("factor_precision", PRECISIONS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name}={getattr(self, name)!r}: choose one of {', '.join(allowed)}")
         resolve_method(self.linear, 0)          # checks the name and availability
+        if self.factor_precision == "single" and self.path == "arclength":
+            raise ValueError("factor_precision='single' with path='arclength': arc length finds "
+                             "its folds from the inertia of every factorization; use 'double'")
         for name in ("rtol", "max_iter", "max_cg", "arc_max_steps"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -178,20 +185,21 @@ class _Linear:
         self.rigid = None          # free rigid motions (orthonormal columns) or None
         self.project = None
 
-    def factorize(self, K):
+    def factorize(self, K, exact_inertia=False):
         """Factorize (or prepare the preconditioner for) K; returns the
-        number of negative eigenvalues (None: unknown) and the set-up time."""
+        number of negative eigenvalues (None: unknown) and the set-up time.
+        exact_inertia: in double precision (DirectSolver.factorize)."""
         t0 = time.perf_counter()
         # the free rigid motions of the current state (rotations turn with it)
         layout = self.problem.block_layout() if hasattr(self.problem, "block_layout") else None
         self.rigid = free_rigid_modes(layout)
         self.project = projector(self.rigid)
         if self.solver is None:
-            self.solver = make_linear_solver(self.opts.linear, K.shape[0], K.indptr, K.indices, layout,
-                                             singular=self.rigid is not None)
+            self.solver = self._new_solver(self.opts.linear, K, layout)
             self.history.linear = self.solver.name
         try:
-            negative = self.solver.factorize(K)
+            negative = (self.solver.factorize(K, exact_inertia) if self.solver.direct
+                        else self.solver.factorize(K))
         except LinearSolverError as exc:
             self.history.notes.append(f"{self.solver.name}: {exc}")
             negative = None
@@ -219,10 +227,28 @@ class _Linear:
         if self.opts.verbose:
             print(f"    AMG: {why}; falling back to '{method}'", flush=True)
         self.solver.release()
-        self.solver = make_linear_solver(method, K.shape[0], K.indptr, K.indices,
-                                         singular=self.rigid is not None)
+        self.solver = self._new_solver(method, K)
         self.history.linear = f"amg->{method}"
         return self.factorize(K)
+
+    def _new_solver(self, method, K, layout=None):
+        solver = make_linear_solver(method, K.shape[0], K.indptr, K.indices, layout,
+                                    singular=self.rigid is not None,
+                                    precision=self.opts.factor_precision)
+        if solver.single:
+            self.history.notes.append(f"{solver.name}: factorizations in single precision "
+                                      "(the stability inertia in double)")
+        return solver
+
+    def to_double(self, why):
+        """Replace single-precision factorizations by double ones."""
+        self.history.notes.append(f"{self.solver.name}: {why}; factorizations in double precision")
+        if self.opts.verbose:
+            print(f"    {why}: factorizations in double precision", flush=True)
+        self.solver.release()
+        self.solver = make_linear_solver(self.solver.name, self.solver.n, self.solver.K.indptr,
+                                         self.solver.K.indices, singular=self.rigid is not None,
+                                         precision="double")
 
     @property
     def direct(self):
@@ -267,6 +293,12 @@ SLOW_NEWTON = 10
 # after REUSE_MAX_CG iterations.
 REUSE_MIN_DOFS = 150_000
 REUSE_MAX_CG = 10
+# with a single-precision factorization of the current positive definite
+# Hessian, the conjugate gradients reach the exact Newton step in a few
+# iterations (factor_precision="single"); where they need more than this, the
+# Hessian is too ill-conditioned for single precision: factorizations in
+# double precision from then on (history note)
+SINGLE_MAX_CG = 20
 
 
 def _uses_trust_region(opts, solver):
@@ -377,6 +409,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             r = radius if trust else np.inf
         # after a rejected step the model at x is the same: the step at the
         # smaller radius comes from the recorded CG path, without iterations
+        single = exact and lin.solver.single     # a single-precision factor of the current K
         replayed = replay.step(r) if replay is not None else None
         replay = None
         try:
@@ -385,7 +418,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             else:
                 cg_path = CGPath() if trust and lin.direct and np.isfinite(r) else None
                 p, info = steihaug_cg(matvec, g, lin.preconditioner(K), r, eta,
-                                      REUSE_MAX_CG if reused else opts.max_cg, lin.project, cg_path)
+                                      REUSE_MAX_CG if reused else SINGLE_MAX_CG if single else opts.max_cg,
+                                      lin.project, cg_path)
         except LinearSolverError as exc:
             cg_path = None
             if not lin.direct and lin.solver.restore_previous():
@@ -403,6 +437,12 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             history.notes.append(f"t={t:.4g} it={it}: reused factorization: CG {info['reason']} "
                                  f"after {info['iterations']} iterations; factorized")
             factorized = fast = False
+            continue
+        if single and info["reason"] == "maxiter":
+            # the Hessian is too ill-conditioned for a single-precision factor
+            lin.to_double(f"t={t:.4g} it={it}: CG preconditioned by the single-precision factor "
+                          f"of the current Hessian reached {SINGLE_MAX_CG} iterations")
+            factorized = False
             continue
         if not lin.direct:
             rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
@@ -631,7 +671,7 @@ def assess_stability(problem, K, opts, history, lin, t):
     state.  Returns the most unstable mode (or None)."""
     if K.shape[0] == 0:
         return None
-    negative, _ = lin.factorize(K)      # inertia (direct); AMG: preconditioner set-up
+    negative, _ = lin.factorize(K, exact_inertia=True)   # inertia (direct); AMG: preconditioner set-up
     history.modes = None
     mode = opts.stability
     if mode == "auto":
