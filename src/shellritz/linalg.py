@@ -227,14 +227,6 @@ REGULARIZATION = 1e-10
 # rounding errors of about 6e-8 times the matrix's scale: a shift below that
 # leaves the pivots of the rigid motions with a random sign
 REGULARIZATION_SINGLE = 1e-6
-# factor_precision="single" (DirectSolver): PARDISO in single precision.
-# Measured on the leaf (2 threads): the 50k leaf Hessian (226k DOFs) factorizes
-# in 3.4 instead of 6.4 s with 0.67 instead of 1.33 GB of factor memory (PARDISO
-# iparm 17; 0.65 GB of analysis data either way); a whole solve of the 50k
-# leaf took the same time (267.8 s against 267.9 s: factorizations 78 against
-# 105 s, but 159 instead of 72 CG iterations and reused factorizations that
-# no longer converge in REUSE_MAX_CG), so double stays the default and single
-# is the option for memory.
 # iterative refinement of solves with a single-precision factor (DirectSolver.solve)
 REFINE_RTOL, REFINE_MAX = 1e-12, 10
 
@@ -273,10 +265,10 @@ class DirectSolver:
             self._to_upper = probe.data.astype(np.int64)
             self._pattern = probe
             upper = self._upper(np.zeros(len(indices)))
-            self._slots = [_PardisoFactor(upper, single) for _ in range(2)]
             # single precision: a third, double-precision slot for the inertia
-            # where it decides (factorize(exact_inertia=True)), created at its first use
-            self._double = (lambda: _PardisoFactor(upper)) if single else None
+            # where it decides (factorize(exact_inertia=True); analysed at its first use)
+            self._slots = ([_PardisoFactor(upper, single) for _ in range(2)]
+                           + ([_PardisoFactor(upper)] if single else []))
         else:
             self._slots = [_SuperLUFactor(), _SuperLUFactor()]
         self._current = None      # slot of the current Hessian
@@ -299,15 +291,9 @@ class DirectSolver:
         are single (the inertia of a single-precision factor is that of K
         up to perturbations of about 1e-6 of its largest entries)."""
         self.K = K
-        double = not self.single or exact_inertia
-        if double and self.single:
-            if len(self._slots) == 2:
-                self._slots.append(self._double())
-            slot = 2
-        else:
-            slot = [i for i in (0, 1) if i != self._pd][0]
+        slot = 2 if self.single and exact_inertia else [i for i in (0, 1) if i != self._pd][0]
         f = self._slots[slot]
-        data = self._regularized(K, REGULARIZATION if double else REGULARIZATION_SINGLE)
+        data = self._regularized(K, REGULARIZATION_SINGLE if self._single(slot) else REGULARIZATION)
         if self.name == "pardiso":
             f.factorize(data[self._to_upper])
         else:
@@ -317,6 +303,10 @@ class DirectSolver:
         if f.negative == 0:
             self._pd = slot
         return f.negative
+
+    def _single(self, slot):
+        """The factor in ``slot`` is single precision (slot 2 is the double one)."""
+        return self.single and slot != 2
 
     def _regularized(self, K, shift):
         if not self.regularize:
@@ -334,10 +324,9 @@ class DirectSolver:
         if self._current is None:
             raise LinearSolverError("no factorization of the current Hessian")
         f = self._slots[self._current]
-        single = self.single and self._current != 2
         x = f.solve(b)
         Kx = lower_matvec(self.K)
-        for _ in range(REFINE_MAX if single else int(self.regularize)):
+        for _ in range(REFINE_MAX if self._single(self._current) else int(self.regularize)):
             r = b - Kx(x)
             if np.linalg.norm(r) <= REFINE_RTOL * np.linalg.norm(b):
                 break
@@ -411,8 +400,9 @@ class AMGSolver:
         """The hierarchy stays one level (AMG_ONE_LEVEL_BLOCKS)."""
         return self.n_full <= AMG_ONE_LEVEL_BLOCKS * self.block
 
-    def factorize(self, K):
-        """Keep K (the hierarchy is built on the first one); no inertia."""
+    def factorize(self, K, exact_inertia=False):
+        """Keep K (the hierarchy is built on the first one); no inertia
+        (exact_inertia: the direct solvers' interface, nothing to do here)."""
         self.K = K
         if self._ml is None:
             self._build(K)
@@ -598,6 +588,14 @@ def _lower_to_full_bsr(indptr, indices, data, free_full, n_full, b, scale):
     return ptr, cols, out
 
 
+# factor_precision="single" (DirectSolver): PARDISO in single precision.
+# Measured on the leaf (2 threads): the 50k leaf Hessian (226k DOFs) factorizes
+# in 3.4 instead of 6.4 s with 0.67 instead of 1.33 GB of factor memory (PARDISO
+# iparm 17; 0.65 GB of analysis data either way); a whole solve of the 50k
+# leaf took the same time (267.8 s against 267.9 s: factorizations 78 against
+# 105 s, but 159 instead of 72 CG iterations and reused factorizations that
+# no longer converge in REUSE_MAX_CG), so double stays the default and single
+# is the option for memory.
 PRECISIONS = ("double", "single")
 
 

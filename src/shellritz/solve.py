@@ -195,11 +195,10 @@ class _Linear:
         self.rigid = free_rigid_modes(layout)
         self.project = projector(self.rigid)
         if self.solver is None:
-            self.solver = self._new_solver(self.opts.linear, K, layout)
+            self.solver = self._new_solver(self.opts.linear, K, self.opts.factor_precision, layout)
             self.history.linear = self.solver.name
         try:
-            negative = (self.solver.factorize(K, exact_inertia) if self.solver.direct
-                        else self.solver.factorize(K))
+            negative = self.solver.factorize(K, exact_inertia)
         except LinearSolverError as exc:
             self.history.notes.append(f"{self.solver.name}: {exc}")
             negative = None
@@ -227,14 +226,13 @@ class _Linear:
         if self.opts.verbose:
             print(f"    AMG: {why}; falling back to '{method}'", flush=True)
         self.solver.release()
-        self.solver = self._new_solver(method, K)
+        self.solver = self._new_solver(method, K, self.opts.factor_precision)
         self.history.linear = f"amg->{method}"
         return self.factorize(K)
 
-    def _new_solver(self, method, K, layout=None):
+    def _new_solver(self, method, K, precision, layout=None):
         solver = make_linear_solver(method, K.shape[0], K.indptr, K.indices, layout,
-                                    singular=self.rigid is not None,
-                                    precision=self.opts.factor_precision)
+                                    singular=self.rigid is not None, precision=precision)
         if solver.single:
             self.history.notes.append(f"{solver.name}: factorizations in single precision "
                                       "(the stability inertia in double)")
@@ -246,9 +244,7 @@ class _Linear:
         if self.opts.verbose:
             print(f"    {why}: factorizations in double precision", flush=True)
         self.solver.release()
-        self.solver = make_linear_solver(self.solver.name, self.solver.n, self.solver.K.indptr,
-                                         self.solver.K.indices, singular=self.rigid is not None,
-                                         precision="double")
+        self.solver = self._new_solver(self.solver.name, self.solver.K, "double")
 
     @property
     def direct(self):
