@@ -53,8 +53,9 @@ sys.path.insert(0, str(HERE))
 RTOL = 1e-8
 THREADS = 2
 # where a method is run (triangles): SuperLU's fill and time grow too fast
-# beyond 50k triangles; two PARDISO handles of a 1M-triangle mesh (4.5M
-# DOFs, 8.8 KB per DOF each at 226k DOFs and growing) do not fit in 24 GB
+# beyond 50k triangles; PARDISO's two factors of a 1M-triangle mesh (4.5M
+# DOFs; analysis and one factor 8.8 KB per DOF at 226k DOFs, growing) do not
+# fit in 24 GB
 LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 250_000,
           "amg-nested": None}
 # "pardiso-nested": nested iteration (Shell.solve(start=...)): the leaf on

@@ -200,7 +200,7 @@ def test_a_solve_frees_its_factorizations(monkeypatch, method):
     leaf(6).solve(verbose=False, linear=method)
     assert len(made) == 1
     slots = made[0]._slots
-    assert all(not s._analysed for s in slots) if method == "pardiso" else all(s._lu is None for s in slots)
+    assert all(not s.handle.analysed for s in slots) if method == "pardiso" else all(s._lu is None for s in slots)
 
 
 # ------------------------------------------------------------------- AMG

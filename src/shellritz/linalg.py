@@ -47,8 +47,9 @@ import scipy.sparse.linalg as spla
 METHODS = ("auto", "pardiso", "superlu", "amg")
 
 # Above this many free DOFs "auto" prefers AMG to a factorization (memory:
-# a PARDISO handle of the leaf Hessian takes 3.8 KB per DOF at 56k DOFs and
-# 8.8 at 226k, and the solver keeps two; see README "Solver").
+# PARDISO's analysis and one factor of the leaf Hessian take 3.8 KB per DOF
+# at 56k DOFs and 8.8 at 226k (analysis 2.9, factor 5.9), and the solver
+# keeps two factors; see README "Solver").
 AUTO_DIRECT_MAX_DOFS = 600_000
 
 # AMG: coarsening stops at this many block rows (pyamg counts blocks: the
@@ -132,19 +133,23 @@ def symmetric_from_lower(K):
 
 
 # --------------------------------------------------------------------- direct
-class _PardisoFactor:
-    """One PARDISO handle: analysis once for the pattern, numeric
-    factorizations of matrices with that pattern, solves."""
+class _PardisoHandle:
+    """One PARDISO handle for matrices of one sparsity pattern: the METIS
+    ordering and symbolic analysis once, then up to ``factors`` numeric
+    factorizations kept side by side (PARDISO's ``maxfct`` / ``mnum``), each
+    slot of :class:`DirectSolver` one of them.  A handle per slot would
+    repeat the analysis and keep its symbolic data twice: on the 50k leaf
+    Hessian (226k DOFs) 2.4 s and 0.65 GB each, next to 1.33 GB per factor.
+    The 1-based row pointers and column indices PARDISO reads are made once
+    (pypardiso's ``_call_pardiso``, which fixes maxfct = mnum = 1, converts
+    them at every call); the call itself is pypardiso's ctypes binding of
+    ``pardiso``."""
 
-    def __init__(self, upper_pattern, single=False):
+    def __init__(self, upper_pattern, factors, single=False):
         import os
         _locate_mkl()
         import pypardiso
         self._ps = ps = pypardiso.PyPardisoSolver(mtype=-2)     # real symmetric indefinite
-        # single: the matrix, the factor and the solves in single precision
-        # (the arrays handed to PARDISO are then float32; pypardiso's
-        # low-level call passes their pointers as they are)
-        self._dtype = np.float32 if single else np.float64
         os.environ.setdefault("PYPARDISO_MKL_RT", ps.libmkl._name)   # found elsewhere: keep it
         ps.set_iparm(1, 1)         # use the iparm values below, not the defaults
         ps.set_iparm(2, 2)         # METIS nested dissection ordering
@@ -152,40 +157,84 @@ class _PardisoFactor:
         #                            of indefinite leaf Hessians, 7e-2 residuals measured)
         ps.set_iparm(21, 1)        # Bunch-Kaufman 1x1 and 2x2 pivots
         ps.set_iparm(24, 1)        # two-level parallel factorization
+        # single: the matrices, the factors and the solves in single precision
+        # (the values handed to PARDISO are then float32)
         ps.set_iparm(28, 1 if single else 0)
-        self._A = upper_pattern.astype(self._dtype)
-        self._analysed = False
+        self.dtype = np.float32 if single else np.float64
+        self.n = upper_pattern.shape[0]
+        self.nnz = upper_pattern.nnz
+        self._ia = (upper_pattern.indptr + 1).astype(np.int32)
+        self._ja = (upper_pattern.indices + 1).astype(np.int32)
+        self.factors = factors
+        self.analysed = False
+
+    def call(self, phase, mnum, data, b):
+        """PARDISO ``phase`` on matrix number ``mnum`` (1-based) with values
+        ``data`` and right-hand sides b (n, nrhs), Fortran order; returns x."""
+        import ctypes
+        from pypardiso.pardiso_wrapper import PyPardisoError
+        ps = self._ps
+        x = np.zeros_like(b)
+        error = ctypes.c_int32(0)
+        int_p = ctypes.POINTER(ctypes.c_int32)
+        ps._mkl_pardiso(ps.pt.ctypes.data_as(ctypes.POINTER(ps._pt_type[0])),
+                        ctypes.byref(ctypes.c_int32(self.factors)), ctypes.byref(ctypes.c_int32(mnum)),
+                        ctypes.byref(ctypes.c_int32(-2)), ctypes.byref(ctypes.c_int32(phase)),
+                        ctypes.byref(ctypes.c_int32(self.n)), data.ctypes.data_as(ctypes.c_void_p),
+                        self._ia.ctypes.data_as(int_p), self._ja.ctypes.data_as(int_p),
+                        ps.perm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(b.shape[1])),
+                        ps.iparm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(0)),
+                        b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p),
+                        ctypes.byref(error))
+        if error.value != 0:
+            raise LinearSolverError(f"PARDISO phase {phase} failed ({PyPardisoError(error.value)})")
+        return x
+
+    def iparm(self, i):
+        return int(self._ps.get_iparm(i))
+
+    def release(self):
+        """Free the analysis and every factor (PARDISO refuses to free a
+        handle it never analysed)."""
+        if self.analysed:
+            self.call(-1, 1, np.zeros(1, self.dtype), np.zeros((self.n, 1), self.dtype))
+            self.analysed = False
+
+
+class _PardisoFactor:
+    """One factor slot: matrix number ``mnum`` of a shared :class:`_PardisoHandle`."""
+
+    def __init__(self, handle, mnum):
+        self.handle, self._mnum = handle, mnum
+        self._data = np.zeros(handle.nnz, handle.dtype)   # PARDISO refines solves against these
         self.negative = None
         self.perturbed = 0
 
-    def _call(self, phase, b):
-        self._ps.set_phase(phase)
-        return self._ps._call_pardiso(self._A, b)      # pypardiso's documented low-level call
-
     def factorize(self, data):
-        import pypardiso
-        self._A.data[:] = data
-        zero = np.zeros((self._A.shape[0], 1), self._dtype)
+        h = self.handle
+        self._data[:] = data
+        zero = np.zeros((h.n, 1), h.dtype)
         try:
-            self._call(22 if self._analysed else 12, zero)
-        except pypardiso.pardiso_wrapper.PyPardisoError as exc:
+            if not h.analysed:
+                h.call(11, self._mnum, self._data, zero)
+                h.analysed = True
+            h.call(22, self._mnum, self._data, zero)
+        except LinearSolverError:
             self.negative = None
-            raise LinearSolverError(f"PARDISO factorization failed ({exc})") from exc
-        self._analysed = True
-        self.negative = int(self._ps.get_iparm(23))
-        self.perturbed = int(self._ps.get_iparm(14))
-        # perturbed pivots: two steps of iterative refinement in the solves
-        self._ps.set_iparm(8, 2 if self.perturbed else 0)
+            raise
+        self.negative = h.iparm(23)
+        self.perturbed = h.iparm(14)
 
     def solve(self, b):
-        b = np.asarray(b, dtype=self._dtype)
-        x = self._call(33, b.reshape(-1, 1) if b.ndim == 1 else np.asfortranarray(b))
+        h = self.handle
+        b = np.asarray(b, dtype=h.dtype)
+        # perturbed pivots: two steps of iterative refinement
+        h._ps.set_iparm(8, 2 if self.perturbed else 0)
+        x = h.call(33, self._mnum, self._data, b.reshape(-1, 1) if b.ndim == 1 else np.asfortranarray(b))
         return x.reshape(b.shape).astype(np.float64, copy=False)
 
     def release(self):
-        if self._analysed:              # PARDISO refuses to free a handle it never analysed
-            self._ps.free_memory(everything=True)
-            self._analysed = False
+        self.handle.release()
 
 
 class _SuperLUFactor:
@@ -238,7 +287,8 @@ class DirectSolver:
     one, which preconditions the conjugate gradients when the current Hessian
     is indefinite (a nearby positive definite Hessian: CG then needs few
     iterations to find the negative curvature and the trust-region step,
-    with one factorization per Newton step).
+    with one factorization per Newton step).  With PARDISO both are factors
+    of one handle (:class:`_PardisoHandle`: one analysis).
 
     single: the factorizations in single precision (PARDISO), as
     preconditioners and with iterative refinement in the solves; the inertia
@@ -263,12 +313,13 @@ class DirectSolver:
                                   shape=(n, n)).T.tocsr()
             probe.sort_indices()
             self._to_upper = probe.data.astype(np.int64)
-            self._pattern = probe
-            upper = self._upper(np.zeros(len(indices)))
-            # single precision: a third, double-precision slot for the inertia
-            # where it decides (factorize(exact_inertia=True); analysed at its first use)
-            self._slots = ([_PardisoFactor(upper, single) for _ in range(2)]
-                           + ([_PardisoFactor(upper)] if single else []))
+            # both slots are factors of one handle (one analysis); single
+            # precision: a third slot, a double-precision handle of its own,
+            # for the inertia where it decides (factorize(exact_inertia=True);
+            # analysed at its first use)
+            shared = _PardisoHandle(probe, 2, single)
+            self._slots = ([_PardisoFactor(shared, 1), _PardisoFactor(shared, 2)]
+                           + ([_PardisoFactor(_PardisoHandle(probe, 1), 1)] if single else []))
         else:
             self._slots = [_SuperLUFactor(), _SuperLUFactor()]
         self._current = None      # slot of the current Hessian
@@ -278,11 +329,6 @@ class DirectSolver:
         self._diag = np.where(rows == indices)[0]
         if len(self._diag) != n:
             raise LinearSolverError("the Hessian pattern lacks diagonal entries")
-
-    def _upper(self, data):
-        A = self._pattern.copy()
-        A.data = data[self._to_upper]
-        return A
 
     def factorize(self, K, exact_inertia=False):
         """Numeric factorization of K (lower CSR, this pattern).  Returns the
