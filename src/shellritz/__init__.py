@@ -14,7 +14,8 @@ from .mesh import Mesh, MeshError
 from .model import ShellError
 from .shell import Result, Shell
 from .solve import EvaluationError, SolveError
+from .nested import coarsen, solve_nested
 
 __all__ = ["NeoHookean", "CubicStretch", "StVenantKirchhoff", "LinearIsotropic", "PowerLawHardening",
            "InvariantLaw", "invariant_law_from_sympy", "Mesh", "MeshError", "Shell",
-           "Result", "ShellError", "SolveError", "EvaluationError"]
+           "Result", "ShellError", "SolveError", "EvaluationError", "coarsen", "solve_nested"]

@@ -152,6 +152,7 @@ class SolveHistory:
     linear: str = ""            # linear method
     factorizations: int = 0
     evaluations: list = field(default_factory=lambda: [0, 0, 0])   # energy / +gradient / +Hessian
+    nested: list = field(default_factory=list)    # coarse levels of nested.solve_nested (dicts)
 
     @property
     def assemblies(self):
