@@ -17,7 +17,7 @@ Coarsening (gpytoolbox, libigl's decimation and Botsch-Kobbelt remeshing):
    polyline;
 3. isotropic remeshing at the target edge length with the boundary vertices
    kept (interior shape quality: on the 50k disc the worst triangle's
-   4 sqrt(3) A / sum l^2 is 0.5-0.7 at 1/4-1/64 of the triangles, against
+   4 sqrt(3) A / sum l^2 is 0.46-0.7 at 1/4-1/64 of the triangles, against
    0.01 for quadric-error decimation, which keeps corners but leaves
    slivers on flat parts); the interior vertices go onto the fine surface
    once more (the remeshing projects them onto the decimated one).
