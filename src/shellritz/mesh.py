@@ -23,6 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
+# a boundary node where the boundary turns by more than this is a corner
+# (hinged edges fix both derivatives there; coarse meshes keep it)
+CORNER_DEG = 30.0
+
 __all__ = ["Mesh", "MeshError", "read_mesh"]
 
 
@@ -269,6 +273,16 @@ class Mesh:
                 v = nxt[v]
             loops.append(np.array(loop))
         return loops
+
+    def boundary_corners(self):
+        """Boundary nodes where the boundary turns by more than CORNER_DEG."""
+        X, corners = self.vertices, []
+        for loop in self.boundary_loops():
+            back, ahead = X[loop] - X[np.roll(loop, 1)], X[np.roll(loop, -1)] - X[loop]
+            cos = np.einsum("ij,ij->i", back, ahead) / (np.linalg.norm(back, axis=1)
+                                                        * np.linalg.norm(ahead, axis=1))
+            corners.extend(loop[cos < np.cos(np.radians(CORNER_DEG))])
+        return np.asarray(corners, dtype=np.int64)
 
     def boundary_nodes(self, loop=None):
         """Nodes on the boundary (all loops, or loop number ``loop``)."""

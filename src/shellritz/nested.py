@@ -11,8 +11,8 @@ Coarsening (gpytoolbox, libigl's decimation and Botsch-Kobbelt remeshing):
    midpoint, so a curved surface or a curved or cornered boundary shrinks:
    the vertices are moved back onto the fine surface);
 2. triangles with two boundary edges (ears) are dropped, and the boundary
-   is put back: each corner of the fine boundary (turning angle
-   above CORNER_DEG) takes the nearest coarse boundary vertex, every other
+   is put back: each corner of the fine boundary (Mesh.boundary_corners:
+   turning angle above 30 degrees) takes the nearest coarse boundary vertex, every other
    coarse boundary vertex goes to the nearest point of the fine boundary
    polyline;
 3. isotropic remeshing at the target edge length with the boundary vertices
@@ -35,7 +35,6 @@ from scipy.spatial import cKDTree
 from .mesh import Mesh, MeshError
 from .transfer import locate
 
-CORNER_DEG = 30.0       # boundary turning angle that marks a corner to keep
 COARSEST = 1500         # triangles of the coarsest level (the 16-ring leaf: 1,536)
 FACTOR = 4              # triangles per level
 
@@ -55,16 +54,6 @@ def _boundary_edges(tri):
     e = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
     u, count = np.unique(e, axis=0, return_counts=True)
     return u[count == 1]
-
-
-def _corners(mesh):
-    """Fine boundary vertices where the boundary turns by more than CORNER_DEG."""
-    X, corners = mesh.vertices, []
-    for loop in mesh.boundary_loops():
-        a, b = X[np.roll(loop, 1)] - X[loop], X[np.roll(loop, -1)] - X[loop]
-        cos = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
-        corners.extend(np.asarray(loop)[cos > -np.cos(np.radians(CORNER_DEG))])
-    return np.asarray(corners, dtype=np.int64)
 
 
 def _without_ears(V, T):
@@ -101,7 +90,7 @@ def _restore_boundary(fine, V, tri):
     fX, fE = fine.vertices, fine.boundary_edges
     free = np.ones(len(bnd), bool)
     tree = cKDTree(V[bnd])
-    for c in _corners(fine):
+    for c in fine.boundary_corners():
         _, j = tree.query(fX[c])
         if free[j]:
             V[bnd[j]], free[j] = fX[c], False
@@ -129,24 +118,21 @@ def coarsen(mesh, n_triangles):
     n_triangles = int(n_triangles)
     if n_triangles < 8 or n_triangles >= len(mesh.triangles):
         raise ValueError(f"coarsen: {n_triangles} triangles requested of a mesh of {len(mesh.triangles)}")
-    X, tri = mesh.vertices, mesh.triangles.astype(np.int32)
-    area = 0.5 * np.linalg.norm(np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]), axis=1).sum()
-    V, T = gp.decimate(X, tri, num_faces=n_triangles, method="shortest_edge")[:2]
+    X = mesh.vertices
+    V, T = gp.decimate(X, mesh.triangles.astype(np.int32), num_faces=n_triangles, method="shortest_edge")[:2]
     V, T = _without_ears(np.asarray(V, dtype=np.float64), T)
     V = _onto(mesh, V)                                      # midpoints of chords lie inside
     _restore_boundary(mesh, V, T)
-    edge = np.sqrt(4.0 * area / (np.sqrt(3.0) * n_triangles))    # equilateral triangles of that area
+    edge = np.sqrt(4.0 * mesh.areas.sum() / (np.sqrt(3.0) * n_triangles))   # equilateral, that area
     V, T = gp.remesh_botsch(V, np.asarray(T, np.int32), 10, edge, True)
     inner = np.setdiff1d(np.arange(len(V)), _boundary_edges(T))  # the remeshing kept the boundary
     V[inner] = _onto(mesh, V[inner])
     coarse = Mesh(V, T)
     # orientation against the fine surface: the normal of the fine vertex nearest each centroid
-    P = coarse.vertices[coarse.triangles]
-    fn = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    _, near = cKDTree(X).query(P.mean(axis=1))
-    turned = np.where(np.einsum("ij,ij->i", fn, mesh.normals[near]) <= 0.0)[0]
+    _, near = cKDTree(X).query(coarse.vertices[coarse.triangles].mean(axis=1))
+    turned = np.where(np.einsum("ij,ij->i", coarse.facet_normals, mesh.normals[near]) <= 0.0)[0]
     if len(turned):
-        raise MeshError(f"coarsen: {len(turned)} of {len(fn)} coarse triangles are turned against "
+        raise MeshError(f"coarsen: {len(turned)} of {len(coarse.triangles)} coarse triangles are turned against "
                         f"the surface (e.g. triangle {turned[0]}); the mesh is too coarse for its shape")
     return coarse
 

@@ -27,7 +27,7 @@ from .discretize.dkt import rule
 from .kernels.assembly import (ELEMENT_STATUS_TEXT, add_position_blocks, assemble_dkt,
                                color_elements, hessian_pattern)
 from .materials import Law
-from .mesh import Mesh, MeshError
+from .mesh import CORNER_DEG, Mesh, MeshError
 from .model import check_thickness, level_id, pressure_face
 from .solve import EvaluationError, Solvable
 from .strain_gradient import DKTStrainGradient, coefficient, dkt_active_elements
@@ -296,7 +296,7 @@ class Shell(Solvable):
 
     def _edge_tangents(self, idx):
         """Unit tangent along the boundary edges joining nodes of idx, and the
-        corner flag (the edges turn by more than 30 degrees)."""
+        corner flag (the edges turn by more than CORNER_DEG)."""
         sel = np.zeros(self.mesh.n_nodes, bool)
         sel[idx] = True
         E = self.mesh.boundary_edges
@@ -312,7 +312,7 @@ class Shell(Solvable):
         for i, ts in acc.items():
             if not ts:
                 raise ValueError(f"node {i} is not on a boundary edge joining the given nodes")
-            corner = len(ts) == 2 and ts[0] @ ts[1] < np.cos(np.radians(30))
+            corner = len(ts) == 2 and ts[0] @ ts[1] < np.cos(np.radians(CORNER_DEG))
             t = ts[0] if corner else np.sum(ts, axis=0)
             N = self.mesh.normals[i]
             t = t - (t @ N) * N                  # chords leave the tangent plane
