@@ -10,8 +10,11 @@ the previous equilibrium, Shell.solve(start=...), with linear="auto" as a
 user would: PARDISO below AUTO_DIRECT_MAX_DOFS; all levels inside the
 timed span, their Newton iterations and factorizations in nested_levels;
 newton_its, krylov_its and factorizations are those of the finest level),
-and "amg-nested": the same with AMG on the finest level (the method for
-meshes whose factors do not fit in memory).  Each run is a fresh process on 2 threads
+"amg-nested": the same with AMG on the finest level (the method for
+meshes whose factors do not fit in memory), and "pardiso-coarsened": nested
+iteration with the coarse meshes made from the fine disc by
+shellritz.solve_nested, as for a user's mesh that has no coarser versions
+(coarsening times in nested_levels).  Each run is a fresh process on 2 threads
 (NUMBA/OMP/MKL_NUM_THREADS = 2) that first loads the compiled kernels and
 solves a tiny leaf (compile time excluded, reported separately), then
 solves the scene and times one Hessian assembly at the solution (the unit
@@ -32,7 +35,7 @@ Hessian at the solution with a hierarchy built on it, the measure of the
 preconditioner apart from the Newton forcing terms, with amg_levels,
 amg_setup_s, amg_cg_1e8_s) and bench/results/scaling.png.
 
-Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested] [--repeats 3] [--time-limit 1200]
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened] [--repeats 3] [--time-limit 1200]
       python bench/scaling.py --quick        (rings 8 and 16)
 """
 
@@ -46,6 +49,8 @@ from pathlib import Path
 
 import numpy as np
 
+from shellritz.nested import COARSEST, FACTOR
+
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 sys.path.insert(0, str(HERE))
@@ -57,12 +62,15 @@ THREADS = 2
 # DOFs; analysis and one factor 8.8 KB per DOF at 226k DOFs, growing) do not
 # fit in 24 GB
 LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 250_000,
-          "amg-nested": None}
+          "amg-nested": None, "pardiso-coarsened": 250_000}
 # "pardiso-nested": nested iteration (Shell.solve(start=...)): the leaf on
 # discs of rings/2, rings/4, ... (at least NESTED_COARSEST rings, the
 # default leaf's mesh) first, each level from the previous one's
 # equilibrium, all inside the timed span (16 -> 32 rings: 5 Newton
 # iterations instead of 18 from the flat disc).
+# "pardiso-coarsened": nested iteration as on a user's mesh, which has no
+# coarser versions: shellritz.solve_nested makes them from the fine disc
+# (1/4, 1/16, ... of its triangles, at least 1,500), all levels with PARDISO
 NESTED_COARSEST = 16
 TIME_LIMIT_S = 1200
 
@@ -85,6 +93,16 @@ row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solve
 t = time.perf_counter()
 try:
     start = None
+    if solver.endswith("-coarsened"):
+        from importlib.resources import files
+        from shellritz import solve_nested
+        from shellritz.meshdata import Surface
+        from shellritz.scenefile import load_scene
+        scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+        res = solve_nested(lambda mesh: scene.build(Surface(mesh))[0], shell.mesh, verbose=False,
+                           linear=linear, rtol=rtol)
+        shell = res.shell
+        row["nested_levels"] = res.history.nested
     for k in coarser:        # nested iteration: each level starts from the previous one
         tk = time.perf_counter()
         start = leaf(k).solve(verbose=False, linear="auto", rtol=rtol, start=start)
@@ -92,7 +110,8 @@ try:
                                          wall_s=time.perf_counter() - tk,
                                          newton_its=len(start.history.iterations),
                                          factorizations=start.history.factorizations))
-    res = shell.solve(verbose=False, linear=linear, rtol=rtol, start=start)
+    if not solver.endswith("-coarsened"):
+        res = shell.solve(verbose=False, linear=linear, rtol=rtol, start=start)
     h, converged, error = res.history, True, None
 except SolveError as exc:
     h, converged, error = exc.history, False, str(exc)
@@ -211,7 +230,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rings", type=int, nargs="+", default=[16, 45, 91, 129, 182, 408])
     ap.add_argument("--solvers", nargs="+",
-                    default=["pardiso", "superlu", "amg", "pardiso-nested", "amg-nested"])
+                    default=["pardiso", "superlu", "amg", "pardiso-nested", "amg-nested", "pardiso-coarsened"])
     ap.add_argument("--time-limit", type=float, default=TIME_LIMIT_S,
                     help="seconds per process (the 1M-triangle run needs more)")
     ap.add_argument("--quick", action="store_true", help="rings 8 and 16")
@@ -228,7 +247,8 @@ def main():
         for solver in args.solvers:
             limit = LIMITS[solver]
             if ((k, solver) in done or (limit is not None and n_est > limit)
-                    or (solver.endswith("-nested") and not nested_levels(k))):
+                    or (solver.endswith("-nested") and not nested_levels(k))
+                    or (solver.endswith("-coarsened") and n_est // FACTOR < COARSEST)):
                 continue
             runs = [run(k, solver, args.time_limit) for _ in range(args.repeats)]
             ok = [r for r in runs if r.get("converged")]
