@@ -178,7 +178,7 @@ def run_one(spec):
             names = output_names(stem, fmt, opts)
             t = time.perf_counter()
             try:
-                result = shell.solve(**scene.solver, verbose=spec.get("verbose", False))
+                result = scene.solve(surf, shell, verbose=spec.get("verbose", False))
             except SolveError as exc:
                 timings["solve_s"] = time.perf_counter() - t
                 summary["history"] = jsonable(exc.history)

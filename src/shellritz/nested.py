@@ -82,6 +82,27 @@ def _onto(fine, V):
     return np.einsum("nk,nkj->nj", lam, fine.vertices[fine.triangles[t]])
 
 
+def interpolate(fine, values, points):
+    """Nodal ``values`` (n, ...) of the mesh ``fine`` at ``points`` on its
+    surface (a coarse mesh's vertices): linear in the fine triangle that
+    holds each point (transfer.locate); integer and boolean values (labels,
+    masks) are those of that triangle's nearest vertex, and each fine node
+    with a non-zero value gives it to the nearest point if that has none (a
+    mask of single nodes, e.g. a pinned point, selects points there too)."""
+    values = np.asarray(values)
+    t, lam, _, _ = locate(fine.vertices, fine.triangles, points)
+    corners = fine.triangles[t]
+    if values.dtype.kind not in "biu":
+        return np.einsum("nk,nk...->n...", lam, values[corners])
+    out = values[corners[np.arange(len(t)), np.argmax(lam, axis=1)]]
+    marked = np.where(values.reshape(len(values), -1).any(axis=1))[0]
+    if len(marked):
+        _, near = cKDTree(points).query(fine.vertices[marked])
+        empty = ~out[near].reshape(len(near), -1).any(axis=1)
+        out[near[empty]] = values[marked[empty]]
+    return out
+
+
 def _restore_boundary(fine, V, tri):
     """Step 2 of the module docstring, in place on the coarse vertices V."""
     bnd = np.unique(_boundary_edges(tri))

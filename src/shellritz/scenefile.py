@@ -27,7 +27,7 @@ import numpy as np
 
 from . import materials
 from .growth import cells_to_nodes, from_fundamental_forms, from_stretches
-from .meshdata import read_surface, file_format
+from .meshdata import Surface, read_surface, file_format
 from .model import LEVELS
 from .shell import Shell
 
@@ -168,6 +168,7 @@ def _solver_keys():
     keys = {name: p.default for name, p in sig.parameters.items()
             if name not in ("self", "verbose", "monitor") and p.default is not p.empty}
     keys.update({f.name: f.default for f in fields(SolverOptions) if f.name not in ("verbose", "stop")})
+    keys["nested"] = False      # nested iteration on coarse meshes made from the input (Scene.solve)
     return keys
 
 
@@ -455,13 +456,15 @@ class Scene:
             return th["relative"] * float(np.ptp(mesh.vertices, axis=0).max())
         return float(th)
 
-    def build(self, surf):
+    def build(self, surf, growth=None, thickness=None):
         """The Shell of this scene on a surface (checks the arrays); returns
-        (shell, description of the growth source)."""
+        (shell, description of the growth source).  growth: (G0, G1) nodal
+        arrays, thickness: a number, instead of the scene's (coarse levels)."""
         sh = self.table("shell")
-        shell = Shell(surf.mesh, thickness=self.thickness(surf.mesh), material=self.law,
+        h = self.thickness(surf.mesh) if thickness is None else thickness
+        shell = Shell(surf.mesh, thickness=h, material=self.law,
                       level=sh.get("level", "consistent"), quadrature=sh.get("quadrature", 6))
-        G0, G1, source = self.growth(surf)
+        G0, G1, source = self.growth(surf) if growth is None else (*growth, "carried from the input mesh")
         if G0 is not None:
             try:
                 shell.set_growth(G0=G0, G1=G1)
@@ -470,6 +473,35 @@ class Scene:
         self._boundary(shell, surf)
         self._loads(shell, surf)
         return shell, source
+
+    def solve(self, surf, shell, verbose=False):
+        """Solve ``shell`` (this scene built on ``surf``) with the [solver]
+        options; with ``nested = true`` by nested iteration
+        (nested.solve_nested): the scene on meshes coarsened from the input,
+        with its point data, its cell data (averaged to the nodes) and the
+        input's nodal growth interpolated onto them, the thickness that of
+        the input (a relative thickness is not re-measured on a coarse
+        mesh).  Raises what Shell.solve raises."""
+        options = dict(self.solver)
+        if not options.pop("nested", False):
+            return shell.solve(**options, verbose=verbose)
+        from .nested import interpolate, solve_nested
+        fine = surf.mesh
+        data = dict(surf.point_data)
+        for name, arr in surf.cell_data.items():
+            arr = np.asarray(arr)
+            if arr.dtype.kind in "biuf" and len(arr) == fine.n_triangles:
+                data.setdefault(name, cells_to_nodes(fine, arr))
+        G0, G1, _ = self.growth(surf)
+
+        def build(mesh):
+            if mesh is fine:
+                return shell
+            point = {name: interpolate(fine, arr, mesh.vertices) for name, arr in data.items()}
+            growth = None if G0 is None else (interpolate(fine, G0, mesh.vertices),
+                                               interpolate(fine, G1, mesh.vertices))
+            return self.build(Surface(mesh, point), growth=growth, thickness=shell.h)[0]
+        return solve_nested(build, fine, verbose=verbose, **options)
 
     def growth(self, surf):
         """(G0, G1, source) nodal arrays, or (None, None, "none")."""
