@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from shellritz import MeshError, coarsen, shapes, solve_nested
+from shellritz.linalg import pardiso_available
 from shellritz.nested import interpolate, levels
 from shellritz.meshdata import Surface
 from shellritz.scenefile import load_scene
@@ -99,6 +100,13 @@ def test_levels_and_bad_requests():
         coarsen(fine, len(fine.triangles))
 
 
+def test_solve_nested_bad_arguments():
+    with pytest.raises(TypeError, match="must be a shellritz.Mesh"):
+        solve_nested(lambda m: None, shapes.disc(40).vertices)
+    with pytest.raises(TypeError, match="must return a shellritz.Shell, not NoneType"):
+        solve_nested(lambda m: None, shapes.disc(40), verbose=False)
+
+
 def test_turned_triangles_are_an_error(monkeypatch):
     """A coarse mesh turned against the fine surface's normals is refused
     (forced here: the remeshing's triangles reversed)."""
@@ -120,8 +128,11 @@ def test_nested_leaf_reaches_the_direct_equilibrium():
         return scene.build(Surface(mesh))[0]
 
     fine = shapes.disc(24)
-    direct = build(fine).solve(verbose=False, rtol=1e-8)
-    nested = solve_nested(build, fine, coarsest=800, verbose=False, rtol=1e-8)
+    direct = build(fine).solve(verbose=False, rtol=1e-8, linear="superlu")
+    nested = solve_nested(build, fine, coarsest=800, verbose=False, rtol=1e-8, linear="superlu")
+    # the linear solver asked for is the given mesh's; the coarse level's is chosen by size
+    assert nested.history.linear == "superlu"
+    assert nested.history.nested[0]["linear"] == ("pardiso" if pardiso_available() else "superlu")
     assert len(nested.history.nested) == 1
     assert 0.8 * 864 <= nested.history.nested[0]["n_triangles"] <= 1.2 * 864
     assert nested.shell.mesh is fine

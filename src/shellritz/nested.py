@@ -33,6 +33,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .mesh import Mesh, MeshError
+from .shell import Shell
 from .transfer import locate
 
 COARSEST = 1500         # triangles of the coarsest level (the 16-ring leaf: 1,536)
@@ -181,25 +182,40 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
     loads selected geometrically, growth as functions of the position).
 
     Returns the fine mesh's Result; ``result.history.nested`` lists each
-    coarse level (triangles, Newton iterations, factorizations, wall time,
-    coarsening time).  A mesh too small for a coarser level is solved
+    coarse level (triangles, Newton iterations, factorizations, linear
+    solver, wall time, coarsening time).  A mesh too small for a coarser level is solved
     directly.  A failed coarse solve raises its SolveError (the fine mesh
-    is then better solved directly)."""
+    is then better solved directly).  The coarse levels choose their linear
+    solver by size (``linear="auto"``: a factorization where it fits; an
+    AMG method asked for the given mesh would meet the coarse levels'
+    buckling from the reference state, where it is no match for a
+    factorization, README "Scaling")."""
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"solve_nested: mesh must be a shellritz.Mesh, not {type(mesh).__name__}")
+    coarse_options = {k: v for k, v in options.items() if k != "linear"}
     start, record = None, []
     for n in levels(mesh, coarsest, factor):
         t0 = time.perf_counter()
         coarse = coarsen(mesh, n)
         t1 = time.perf_counter()
-        shell = build(coarse)
+        shell = _built(build, coarse)
         if verbose:
             print(f"nested iteration: level of {len(coarse.triangles)} triangles", flush=True)
-        start = shell.solve(verbose=verbose, start=start, **options)
+        start = shell.solve(verbose=verbose, start=start, **coarse_options)
         h = start.history
         record.append(dict(n_triangles=int(len(coarse.triangles)), coarsen_s=t1 - t0,
                            wall_s=time.perf_counter() - t1, newton_its=len(h.iterations),
-                           factorizations=h.factorizations))
+                           factorizations=h.factorizations, linear=h.linear))
     if verbose and record:
         print(f"nested iteration: the given mesh ({len(mesh.triangles)} triangles)", flush=True)
-    result = build(mesh).solve(verbose=verbose, start=start, **options)
+    result = _built(build, mesh).solve(verbose=verbose, start=start, **options)
     result.history.nested = record
     return result
+
+
+def _built(build, mesh):
+    shell = build(mesh)
+    if not isinstance(shell, Shell):
+        raise TypeError(f"solve_nested: build(mesh) must return a shellritz.Shell, "
+                        f"not {type(shell).__name__}")
+    return shell
