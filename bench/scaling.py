@@ -11,10 +11,10 @@ user would: PARDISO below AUTO_DIRECT_MAX_DOFS; all levels inside the
 timed span, their Newton iterations and factorizations in nested_levels;
 newton_its, krylov_its and factorizations are those of the finest level),
 "amg-nested": the same with AMG on the finest level (the method for
-meshes whose factors do not fit in memory), and "pardiso-coarsened": nested
-iteration with the coarse meshes made from the fine disc by
-shellritz.solve_nested, as for a user's mesh that has no coarser versions
-(coarsening times in nested_levels).  Each run is a fresh process on 2 threads
+meshes whose factors do not fit in memory), and "pardiso-coarsened" /
+"amg-coarsened": nested iteration with the coarse meshes made from the fine
+disc by shellritz.solve_nested, as for a user's mesh that has no coarser
+versions (coarsening times in nested_levels).  Each run is a fresh process on 2 threads
 (NUMBA/OMP/MKL_NUM_THREADS = 2) that first loads the compiled kernels and
 solves a tiny leaf (compile time excluded, reported separately), then
 solves the scene and times one Hessian assembly at the solution (the unit
@@ -35,7 +35,7 @@ Hessian at the solution with a hierarchy built on it, the measure of the
 preconditioner apart from the Newton forcing terms, with amg_levels,
 amg_setup_s, amg_cg_1e8_s) and bench/results/scaling.png.
 
-Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened] [--repeats 3] [--time-limit 1200]
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200]
       python bench/scaling.py --quick        (rings 8 and 16)
 """
 
@@ -62,7 +62,7 @@ THREADS = 2
 # DOFs; analysis and one factor 8.8 KB per DOF at 226k DOFs, growing) do not
 # fit in 24 GB
 LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 250_000,
-          "amg-nested": None, "pardiso-coarsened": 250_000}
+          "amg-nested": None, "pardiso-coarsened": 250_000, "amg-coarsened": None}
 # "pardiso-nested": nested iteration (Shell.solve(start=...)): the leaf on
 # discs of rings/2, rings/4, ... (at least NESTED_COARSEST rings, the
 # default leaf's mesh) first, each level from the previous one's
@@ -70,7 +70,9 @@ LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 
 # iterations instead of 18 from the flat disc).
 # "pardiso-coarsened": nested iteration as on a user's mesh, which has no
 # coarser versions: shellritz.solve_nested makes them from the fine disc
-# (1/4, 1/16, ... of its triangles, at least 1,500), all levels with PARDISO
+# (1/4, 1/16, ... of its triangles, at least 1,500), all levels with PARDISO;
+# "amg-coarsened": the same with AMG on the given mesh (the coarse levels
+# choose their solver by size, as solve_nested does)
 NESTED_COARSEST = 16
 TIME_LIMIT_S = 1200
 
@@ -230,7 +232,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rings", type=int, nargs="+", default=[16, 45, 91, 129, 182, 408])
     ap.add_argument("--solvers", nargs="+",
-                    default=["pardiso", "superlu", "amg", "pardiso-nested", "amg-nested", "pardiso-coarsened"])
+                    default=["pardiso", "superlu", "amg", "pardiso-nested", "amg-nested", "pardiso-coarsened",
+                             "amg-coarsened"])
     ap.add_argument("--time-limit", type=float, default=TIME_LIMIT_S,
                     help="seconds per process (the 1M-triangle run needs more)")
     ap.add_argument("--quick", action="store_true", help="rings 8 and 16")
