@@ -299,6 +299,30 @@ def test_amg_preconditions_a_plate_hessian(levels, monkeypatch):
     assert info["iterations"] < 40 < jac["iterations"]
 
 
+def test_amg_hierarchy_stops_at_the_level_cap(monkeypatch):
+    """The coarsening stops at AMG_MAX_LEVELS even where AMG_COARSE_BLOCKS
+    is not reached (a fourth level made the W-cycle much weaker: 269 against
+    75 CG iterations on the 100k-triangle thin leaf, bench/amg_growth.py),
+    and the capped hierarchy still preconditions CG to 1e-8.  The 24 x 24
+    plate coarsened to 2 blocks would have more levels without the cap."""
+    import shellritz.linalg as linalg
+    monkeypatch.setattr(linalg, "AMG_ONE_LEVEL_BLOCKS", 0)
+    monkeypatch.setattr(linalg, "AMG_COARSE_BLOCKS", 2)
+    s = _plate(24)
+    _, g, K = s.evaluate(s.free_state(), 2)
+    cap = linalg.AMG_MAX_LEVELS
+    levels = {}
+    for limit in (10, cap):                        # the capped (default) hierarchy last
+        monkeypatch.setattr(linalg, "AMG_MAX_LEVELS", limit)
+        amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, s.block_layout())
+        amg.factorize(K)
+        levels[limit] = len(amg._ml.levels)
+    assert levels[10] > cap and levels[cap] == cap
+    b = np.random.default_rng(1).standard_normal(K.shape[0])
+    p, info = steihaug_cg(lower_matvec(K), -b, amg.preconditioner(), rtol=1e-8, maxiter=200)
+    assert info["reason"] == "converged"
+
+
 def test_amg_embedding_is_the_symmetric_hessian_in_nodal_blocks():
     """AMGSolver._embed writes the full symmetric matrix of the lower
     triangle straight into 9 x 9 nodal blocks of the full numbering, the

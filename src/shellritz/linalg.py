@@ -64,6 +64,16 @@ AUTO_DIRECT_MAX_DOFS = 600_000
 # and the least memory: the set-up's temporaries beyond the Hessian peak at
 # 0.46 GB against 0.95 (degree 1), which decides at 1M triangles (24 GB).
 AMG_COARSE_BLOCKS = 250
+# ... or after three levels, whichever comes first: a fourth level (from
+# about 100k triangles on) made the W-cycle much weaker.  Measured on the
+# leaf with h = 0.005, whose elements stay longer than h (bench/amg_growth.py,
+# CG to 1e-8 on the Hessian at the solution): 80 / 78 iterations at 12k /
+# 50k triangles (three levels each), 269 at 100k with four levels (163 s of
+# CG), 75 with three (47.5 s; set-up 8.8 against 7.8 s).  The coarsest level
+# grows with the mesh (about 5 % of the DOFs of the second); at 1M
+# triangles the third level had 22k unknowns (SuperLU of such a level: about
+# 50 s and 0.6 GB, measured at 50k).
+AMG_MAX_LEVELS = 3
 # ... except that a Hessian of at most this many nodal blocks (27,000 DOFs
 # of the triangle engine: sparse, cheap to factorize) is one level: the
 # coarse solver's factor of the Hessian the hierarchy was built on, kept as
@@ -472,6 +482,7 @@ class AMGSolver:
                     presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
                     max_coarse=AMG_ONE_LEVEL_BLOCKS if self.one_level else AMG_COARSE_BLOCKS,
+                    max_levels=AMG_MAX_LEVELS,
                     coarse_solver="splu")
         opts.update(self.options)
         with warnings.catch_warnings():
