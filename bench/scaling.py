@@ -134,28 +134,12 @@ row.update(dofs=int(len(x)), assembly_s=float(np.median(times)), converged=conve
            energy=float(E), stable=h.stable, notes=h.notes[:5], linear_used=h.linear,
            peak_mem_gb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20)
 if solver.startswith("amg") and converged:
-    # the preconditioner's quality apart from the Newton forcing terms (which
-    # set a different CG tolerance per step): CG iterations to a relative
-    # residual of 1e-8 for a fixed random right side (rigid motions projected
-    # out), one W-cycle of a hierarchy built on the Hessian at the solution
-    from shellritz.linalg import (free_rigid_modes, lower_matvec, make_linear_solver, projector,
-                                  steihaug_cg)
+    # the preconditioner apart from the Newton forcing terms (bench/amg_cg.py)
+    from amg_cg import amg_cg_iterations
     del res, start
-    layout = shell.block_layout()
-    project = projector(free_rigid_modes(layout))
-    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, layout)
-    t = time.perf_counter()
-    amg.factorize(K)
-    row["amg_setup_s"] = time.perf_counter() - t
-    row["amg_levels"] = len(amg._ml.levels)
-    b = np.random.default_rng(0).standard_normal(K.shape[0])
-    b = project(b) if project is not None else b
-    t = time.perf_counter()
-    _, info = steihaug_cg(lower_matvec(K), -b, amg.preconditioner(), rtol=1e-8, maxiter=1000,
-                          project=project)
-    row.update(amg_cg_1e8_its=info["iterations"], amg_cg_1e8_reason=info["reason"],
-               amg_cg_1e8_s=time.perf_counter() - t)
-    amg.release()
+    m = amg_cg_iterations(K, shell.block_layout())
+    row.update(amg_setup_s=m["setup_s"], amg_levels=m["levels"], amg_cg_1e8_its=m["its"],
+               amg_cg_1e8_reason=m["reason"], amg_cg_1e8_s=m["cg_s"])
 # the final gradient relative to that of the reference (flat) state at t = 1,
 # the scale rtol refers to for every method (solve(start=) included)
 ref = leaf(rings)

@@ -74,6 +74,8 @@ AMG_COARSE_BLOCKS = 250
 # triangles the third level had 22k unknowns (SuperLU of such a level: about
 # 50 s and 0.6 GB, measured at 50k).
 AMG_MAX_LEVELS = 3
+# pre- and post-smoother of every level
+AMG_SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
 # ... except that a Hessian of at most this many nodal blocks (27,000 DOFs
 # of the triangle engine: sparse, cheap to factorize) is one level: the
 # coarse solver's factor of the Hessian the hierarchy was built on, kept as
@@ -479,8 +481,8 @@ class AMGSolver:
         opts = dict(symmetry="symmetric",
                     strength=("symmetric", {"theta": 0.0}),
                     smooth=("jacobi", {"omega": 4.0 / 3.0, "weighting": "local"}),
-                    presmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
-                    postsmoother=("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+                    presmoother=AMG_SMOOTHER,
+                    postsmoother=AMG_SMOOTHER,
                     max_coarse=AMG_ONE_LEVEL_BLOCKS if self.one_level else AMG_COARSE_BLOCKS,
                     max_levels=AMG_MAX_LEVELS,
                     coarse_solver="splu")

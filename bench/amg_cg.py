@@ -1,0 +1,41 @@
+"""The AMG preconditioner's quality apart from the Newton forcing terms
+(which set a different CG tolerance per step), shared by bench/scaling.py
+(amg_cg_1e8_*) and bench/amg_growth.py: CG to a relative residual of 1e-8
+for a fixed random right side (free rigid motions projected out), one
+W-cycle of shellritz's AMG hierarchy per iteration."""
+
+import time
+
+import numpy as np
+
+
+def amg_cg_iterations(K, layout, finest=None, options=None):
+    """CG on ``finest`` (default K; lower CSR) preconditioned by the solver's
+    hierarchy built on K (``options``: pyamg options over the solver's); with
+    ``finest`` the hierarchy's finest level (residuals and smoother) is that
+    matrix.  Returns dict(its, reason, setup_s, cg_s, levels, coarsest_blocks)
+    (pyamg's count of the coarsest level: nodal blocks or aggregates)."""
+    from pyamg.relaxation.smoothing import change_smoothers
+    from shellritz.linalg import (AMG_SMOOTHER, free_rigid_modes, lower_matvec, make_linear_solver,
+                                  projector, steihaug_cg)
+    finest = K if finest is None else finest
+    project = projector(free_rigid_modes(layout))
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, layout)
+    amg.options = dict(options or {})
+    t = time.perf_counter()
+    amg.factorize(K)
+    if finest is not K:
+        amg._ml.levels[0].A = amg._embed(finest)
+        change_smoothers(amg._ml, AMG_SMOOTHER, AMG_SMOOTHER)
+    setup = time.perf_counter() - t
+    b = np.random.default_rng(0).standard_normal(K.shape[0])
+    b = project(b) if project is not None else b
+    t = time.perf_counter()
+    _, info = steihaug_cg(lower_matvec(finest), -b, amg.preconditioner(), rtol=1e-8, maxiter=1000,
+                          project=project)
+    coarse = amg._ml.levels[-1].A
+    blocks = coarse.shape[0] // (coarse.blocksize[0] if hasattr(coarse, "blocksize") else 1)
+    out = dict(its=info["iterations"], reason=info["reason"], setup_s=setup,
+               cg_s=time.perf_counter() - t, levels=len(amg._ml.levels), coarsest_blocks=int(blocks))
+    amg.release()
+    return out
