@@ -20,7 +20,8 @@ residual of 1e-8, one W-cycle of shellritz's AMG hierarchy per iteration):
   cap (pyamg coarsens on to AMG_COARSE_BLOCKS blocks).
 
 Rows carry ``max_levels`` (the cap in effect; rows without it were
-measured before the cap existed, i.e. with unlimited levels).
+measured before the cap existed, i.e. with unlimited levels) and
+``strength_theta`` (linalg.AMG_STRENGTH_THETA; rows without it: 0).
 
 Rows: h, rings, n_triangles, dofs, active (fraction of elements carrying
 the strain-gradient term), variant, cg_its, reason, setup_s, cg_s, levels,
@@ -47,7 +48,7 @@ import numpy as np
 from importlib.resources import files
 from amg_cg import amg_cg_iterations
 from shellritz import shapes, solve_nested
-from shellritz.linalg import AMG_COARSE_BLOCKS, AMG_MAX_LEVELS
+from shellritz.linalg import AMG_COARSE_BLOCKS, AMG_MAX_LEVELS, AMG_STRENGTH_THETA
 from shellritz.meshdata import Surface
 from shellritz.scenefile import load_scene
 rings, h = int(sys.argv[1]), float(sys.argv[2])
@@ -74,7 +75,7 @@ for name, Kh, finest, options in variants:
     m = amg_cg_iterations(Kh, layout, finest, options)
     row = dict(base, variant=name, cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"],
                cg_s=m["cg_s"], levels=m["levels"], coarsest_blocks=m["coarsest_blocks"],
-               max_levels=options.get("max_levels", AMG_MAX_LEVELS))
+               max_levels=options.get("max_levels", AMG_MAX_LEVELS), strength_theta=AMG_STRENGTH_THETA)
     print("ROW " + json.dumps(row), flush=True)
     if name == "full" and m["levels"] == AMG_MAX_LEVELS and m["coarsest_blocks"] > AMG_COARSE_BLOCKS:
         variants.append(("more_levels", K, None, {"max_levels": 10}))

@@ -33,7 +33,8 @@ that of the flat disc at t = 1), stable, converged, error; for the AMG methods
 also amg_cg_1e8_its: CG iterations to a relative residual of 1e-8 on the
 Hessian at the solution with a hierarchy built on it, the measure of the
 preconditioner apart from the Newton forcing terms, with amg_levels,
-amg_setup_s, amg_cg_1e8_s) and bench/results/scaling.png.
+amg_setup_s, amg_cg_1e8_s, amg_strength_theta: linalg.AMG_STRENGTH_THETA,
+absent in rows measured before it existed, i.e. with 0) and bench/results/scaling.png.
 
 Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200]
       python bench/scaling.py --quick        (rings 8 and 16)
@@ -138,8 +139,9 @@ if solver.startswith("amg") and converged:
     from amg_cg import amg_cg_iterations
     del res, start
     m = amg_cg_iterations(K, shell.block_layout())
+    from shellritz.linalg import AMG_STRENGTH_THETA
     row.update(amg_setup_s=m["setup_s"], amg_levels=m["levels"], amg_cg_1e8_its=m["its"],
-               amg_cg_1e8_reason=m["reason"], amg_cg_1e8_s=m["cg_s"])
+               amg_cg_1e8_reason=m["reason"], amg_cg_1e8_s=m["cg_s"], amg_strength_theta=AMG_STRENGTH_THETA)
 # the final gradient relative to that of the reference (flat) state at t = 1,
 # the scale rtol refers to for every method (solve(start=) included)
 ref = leaf(rings)

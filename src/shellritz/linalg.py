@@ -74,6 +74,19 @@ AMG_COARSE_BLOCKS = 250
 # triangles the third level had 22k unknowns (SuperLU of such a level: about
 # 50 s and 0.6 GB, measured at 50k).
 AMG_MAX_LEVELS = 3
+# strength of connection: a coupling between two nodes whose block is below
+# this fraction of their diagonal blocks' (Frobenius norms) is weak and not
+# aggregated along.  theta = 0 (every coupling strong) aggregated across the
+# weak couplings of the strain-gradient term's edge jumps and of the
+# tangent DOFs.  Measured on the leaf at the solution (bench/amg_growth.py,
+# CG to 1e-8, three levels, 2026-12-04): h = 0.02 at 12k / 50k / 100k
+# triangles 55 / 94 / 136 iterations with theta = 0, 32 / 40 / 59 with
+# 0.05, 29 / 30 / 54 with 0.1; h = 0.005 at 50k 78 / 42 / 43; theta = 0.2
+# did not converge in 1,000 (50k, h = 0.02: too many nodes left out of
+# every aggregate).  0.05 keeps away from that edge; at 100k its CG took
+# 62 s against 106 s (larger coarse levels: 1.04 s per iteration against
+# 0.78) and 69 s with 0.1.
+AMG_STRENGTH_THETA = 0.05
 # pre- and post-smoother of every level
 AMG_SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
 # ... except that a Hessian of at most this many nodal blocks (27,000 DOFs
@@ -479,7 +492,11 @@ class AMGSolver:
             self._ml = None
         A = self._embed(K)
         opts = dict(symmetry="symmetric",
-                    strength=("symmetric", {"theta": 0.0}),
+                    strength=("symmetric", {"theta": AMG_STRENGTH_THETA}),
+                    # pyamg's default relaxes the near-null space on level 0 first:
+                    # the rigid modes are exact up to the fixed DOFs, and it cost
+                    # 4.5 of the 7 s set-up at 50k for the same CG iterations (95 / 94)
+                    improve_candidates=None,
                     smooth=("jacobi", {"omega": 4.0 / 3.0, "weighting": "local"}),
                     presmoother=AMG_SMOOTHER,
                     postsmoother=AMG_SMOOTHER,
