@@ -137,9 +137,9 @@ row.update(dofs=int(len(x)), assembly_s=float(np.median(times)), converged=conve
 if solver.startswith("amg") and converged:
     # the preconditioner apart from the Newton forcing terms (bench/amg_cg.py)
     from amg_cg import amg_cg_iterations
+    from shellritz.linalg import AMG_STRENGTH_THETA
     del res, start
     m = amg_cg_iterations(K, shell.block_layout())
-    from shellritz.linalg import AMG_STRENGTH_THETA
     row.update(amg_setup_s=m["setup_s"], amg_levels=m["levels"], amg_cg_1e8_its=m["its"],
                amg_cg_1e8_reason=m["reason"], amg_cg_1e8_s=m["cg_s"], amg_strength_theta=AMG_STRENGTH_THETA)
 # the final gradient relative to that of the reference (flat) state at t = 1,

@@ -81,11 +81,11 @@ AMG_MAX_LEVELS = 3
 # tangent DOFs.  Measured on the leaf at the solution (bench/amg_growth.py,
 # CG to 1e-8, three levels, 2026-12-04): h = 0.02 at 12k / 50k / 100k
 # triangles 55 / 94 / 136 iterations with theta = 0, 32 / 40 / 59 with
-# 0.05, 29 / 30 / 54 with 0.1; h = 0.005 at 50k 78 / 42 / 43; theta = 0.2
-# did not converge in 1,000 (50k, h = 0.02: too many nodes left out of
-# every aggregate).  0.05 keeps away from that edge; at 100k its CG took
-# 62 s against 106 s (larger coarse levels: 1.04 s per iteration against
-# 0.78) and 69 s with 0.1.
+# 0.05 (CG at 100k 70 s against 106 s: fewer but dearer iterations, the
+# coarse levels being larger); h = 0.005 78 -> 42 at 50k.  On the same
+# Hessians measured apart: 0.1 gave 29 / 30 / 54, and 0.2 did not converge
+# in 1,000 iterations (50k, h = 0.02: too many nodes left out of every
+# aggregate); 0.05 keeps away from that edge.
 AMG_STRENGTH_THETA = 0.05
 # pre- and post-smoother of every level
 AMG_SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
