@@ -17,9 +17,13 @@ of the edge traction P / b, what `Shell.edge_load` computes):
 
 * shellritz: `Shell(mesh, h, StVenantKirchhoff.from_young(E, 0), level=
   "consistent")`, `clamp(x = 0)`, `edge_load(x = L, (0, 0, P / b))`,
-  `solve(steps=10)` (adaptive: a step may double after an easy one; the
-  steps taken are recorded); convergence |g| <= 1e-9 max(|g| at the step
-  start, |load at t|), or a Newton correction at round-off.
+  `solve(steps=10, max_dt=0.1)`: the protocol's 10 equal load steps (a
+  step is halved only if it fails; the steps taken are recorded), each
+  started from the cubic Hermite extrapolation of the last two equilibria
+  and their tangents (the default predictor); convergence |g| <= 1e-9
+  max(|g| at the step start, |load at t|), or a Newton correction at
+  round-off.  Code `shellritz-adaptive`: `solve(steps=10)`, shellritz's
+  default, whose steps double after easy ones (fewer than 10 steps).
 * Kratos: `ShellThinElementCorotational3D3N` with `LinearElasticPlaneStress2DLaw`,
   displacements and rotations fixed at x = 0, `PointLoadCondition3D1N` on
   the free-edge nodes, `ResidualBasedNewtonRaphsonStrategy` with
@@ -46,6 +50,7 @@ each: OMP_NUM_THREADS, NUMBA_NUM_THREADS, MKL_NUM_THREADS are set before
 anything loads, plus numba.set_num_threads and Kratos'
 ParallelUtilities.SetNumThreads; the values in effect are recorded.
 
+Rows carry wall_over_kratos (wall time / Kratos' in the same run).
 Writes bench/results/peers.json and peers.png (--quick: one repeat on
 meshes of 64 and 256 triangles, peers_quick.*).
 Run:  pip install -e '.[peers]' && python bench/peers.py [--repeats 3] [--quick]
@@ -76,6 +81,7 @@ CASES = {"full": [(64, 10), (128, 20)], "quick": [(16, 2), (32, 4)]}
 WARMUP = (8, 2)
 RTOL = 1e-9
 KRATOS_LINEAR = "sparse_lu"     # LinearSolversApplication: Eigen SparseLU
+CODES = ("shellritz", "kratos", "shellritz-adaptive")
 
 
 def elastica(alpha, axial=0.0):
@@ -117,13 +123,14 @@ def tip_forces(mesh, tip):
 
 
 # ------------------------------------------------------------------ shellritz
-def run_shellritz(mesh, clamped, tip):
+def run_shellritz(mesh, clamped, tip, adaptive=False):
+    """10 equal load steps (the protocol), or adaptive ones from 10."""
     from shellritz import Shell, StVenantKirchhoff
     t0, c0 = time.perf_counter(), time.process_time()
     shell = Shell(mesh, H, StVenantKirchhoff.from_young(E, NU), level="consistent")
     shell.clamp(clamped)
     shell.edge_load(tip, [0.0, 0.0, P / B])
-    res = shell.solve(steps=STEPS, verbose=False, rtol=RTOL)
+    res = shell.solve(steps=STEPS, verbose=False, rtol=RTOL, max_dt=None if adaptive else 1.0 / STEPS)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     h = res.history
     steps = [t for t, ok in h.steps[1:] if ok]            # h.steps[0] is the start state t = 0
@@ -272,13 +279,14 @@ def main():
     for nx, ny in CASES["quick" if args.quick else "full"]:
         mesh = strip(nx, ny)
         case = f"{nx}x{ny}"
-        per_code = {"shellritz": [], "kratos": []}
+        per_code = {code: [] for code in CODES}
         for r in range(repeats):
-            for code, fn in (("shellritz", run_shellritz), ("kratos", run_kratos)):
+            for code, fn in (("shellritz", run_shellritz), ("kratos", run_kratos),
+                             ("shellritz-adaptive", lambda *m: run_shellritz(*m, adaptive=True))):
                 out = fn(*mesh)
                 per_code[code].append(out)
                 runs.append({"case": case, "code": code, "repeat": r, **out})
-                print(f"{case:7s} {mesh[0].n_triangles:5d} triangles {code:9s} run {r}: {out['wall_s']:7.2f} s, "
+                print(f"{case:7s} {mesh[0].n_triangles:5d} triangles {code:18s} run {r}: {out['wall_s']:7.2f} s, "
                       f"{out['newton_its']} Newton its, tip u {out['tip_u']:.5f} w {out['tip_w']:.5f}", flush=True)
         for code, outs in per_code.items():
             last = outs[-1]
@@ -293,6 +301,9 @@ def main():
                          "residual_rel": last["residual_rel"],
                          "newton_its_all_runs": sorted({o["newton_its"] for o in outs}),
                          "wall_s_runs": [o["wall_s"] for o in outs]})
+    kratos_wall = {r["case"]: r["wall_s"] for r in rows if r["code"] == "kratos"}
+    for r in rows:
+        r["wall_over_kratos"] = r["wall_s"] / kratos_wall[r["case"]]
     machine["load_average_end"] = list(os.getloadavg())
     out = {
         "benchmark": "Sze et al. 2004 section 3.1: cantilever strip under end shear, shellritz vs Kratos",
@@ -307,7 +318,9 @@ def main():
         "reference": ref,
         "errors": "err_u, err_w relative to the (inextensible) elastica",
         "shellritz": {"law": "StVenantKirchhoff.from_young(1.2e6, 0.0)", "level": "consistent",
-                      "solve": f"solve(steps={STEPS}, rtol={RTOL}) defaults: trust-region Newton, linear='auto'",
+                      "solve": f"solve(steps={STEPS}, rtol={RTOL}, max_dt={1 / STEPS}) defaults: trust-region "
+                               "Newton, linear='auto', predictor='tangent'; code shellritz-adaptive: without "
+                               "max_dt (steps doubled after easy ones)",
                       "convergence": "|g| <= rtol max(|g| at step start, |load at t|) or a Newton correction "
                                      "at round-off"},
         "kratos": {"element": "ShellThinElementCorotational3D3N",
@@ -329,7 +342,8 @@ def main():
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=2))
     chart(rows, RESULTS / f"{name}.png", machine)
     for r in rows:
-        print(f"{r['case']:7s} {r['code']:9s} {r['wall_s']:7.2f} s  {r['newton_its']:3d} its  "
+        print(f"{r['case']:7s} {r['code']:18s} {r['wall_s']:7.2f} s ({r['wall_over_kratos']:.2f} x Kratos)  "
+              f"{r['newton_its']:3d} its  "
               f"err u {r['err_u']:+.2e} w {r['err_w']:+.2e}  residual/load {r['residual_rel']:.1e}")
 
 
@@ -338,24 +352,25 @@ def chart(rows, path, machine):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     cases = list(dict.fromkeys(r["case"] for r in rows))
-    codes = ("shellritz", "kratos")
+    codes = CODES
     get = {(r["case"], r["code"]): r for r in rows}
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
     x = np.arange(len(cases))
     for j, code in enumerate(codes):
         rr = [get[c, code] for c in cases]
-        bars = a1.bar(x + (j - 0.5) * 0.38, [r["wall_s"] for r in rr], 0.38, label=code)
+        bars = a1.bar(x + (j - 1) * 0.27, [r["wall_s"] for r in rr], 0.27,
+                      label=f"{code} ({rr[0]['load_steps']} steps)")
         for b, r in zip(bars, rr):
             a1.annotate(f"{r['newton_its']} its", (b.get_x() + b.get_width() / 2, b.get_height()),
                         ha="center", va="bottom", fontsize=8)
         for k, (comp, marker) in enumerate((("err_u", "o"), ("err_w", "s"))):
-            a2.semilogy(x + (j - 0.5) * 0.1, [abs(r[comp]) for r in rr], marker, ls="-",
+            a2.semilogy(x + (j - 1) * 0.1, [abs(r[comp]) for r in rr], marker, ls="-",
                         color=f"C{j}", label=f"{code} {'u (x)' if comp == 'err_u' else 'w (z)'}",
                         mfc="none" if k else None)
     labels = [f"{c}\n{get[c, codes[0]]['n_triangles']} triangles" for c in cases]
     a1.set_xticks(x, labels)
     a1.set_ylabel(f"wall time (s, {machine['numba_threads']} threads, median)")
-    a1.set_title("Sze cantilever, 10 load steps")
+    a1.set_title("Sze cantilever, 10 load steps (adaptive: from 10)")
     a1.legend()
     a2.axhline(1e-3, color="gray", ls=":", lw=1)
     a2.annotate("0.1 %", (x[-1], 1e-3), fontsize=7, color="gray", va="bottom", ha="right")

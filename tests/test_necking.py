@@ -136,7 +136,11 @@ def test_solver_follows_the_homogeneous_path_and_reports_the_instability():
         # Considere maximum; from a first step past it the Newton iteration escapes
         # into the spurious short-wave bending modes of docs/necking.md)
         res = eng.solve(steps=20, verbose=False, escape=False)     # report, do not leave
-        assert np.abs(eng.free_state() - homogeneous_state(eng, lam)).max() < 1e-12
+        # homogeneous to the solver's tolerance (rtol 1e-9 of the force of
+        # each step's increment of t, dt |dg/dt|: observed 6e-10 on a strip
+        # of length 1; 1e-12 while the tolerance referred to the gradient
+        # at the start of a secant-predicted step); a neck would be O(1e-2)
+        assert np.abs(eng.free_state() - homogeneous_state(eng, lam)).max() < 1e-8
         assert res.history.stable == stable
         assert res.history.unstable_modes == engine_inertia(law, h, 1.0, n, lam)[0]
 

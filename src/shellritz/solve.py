@@ -34,7 +34,10 @@ solved by CG to the same tolerance preconditioned by the previous
 factorization instead of a new one (same Newton step, to 1e-10); a solve
 that needs more than REUSE_MAX_CG iterations or meets negative curvature
 falls back to factorizing.  The line-search variant takes the
-truncated Newton-CG direction with Armijo backtracking.  At every converged
+truncated Newton-CG direction with Armijo backtracking.  Each load step
+after the first starts from the cubic Hermite extrapolation through the
+last two equilibria and their tangents dx/dt = -K^-1 dg/dt (_predict).
+At every converged
 state the inertia of the Hessian is known from its factorization; an
 unstable equilibrium is reported with its lowest eigenvalues and, by
 default, left along its most unstable mode to a stable state.
@@ -51,6 +54,7 @@ from .linalg import (PRECISIONS, CGPath, LinearSolverError, free_rigid_modes, ja
 
 GLOBALIZATIONS = ("auto", "trust-region", "line-search")
 PATHS = ("load", "arclength")
+PREDICTORS = ("tangent", "secant")
 STABILITY = ("auto", "inertia", "eigen", "off")
 REUSE = ("auto", "always", "never")
 
@@ -97,13 +101,18 @@ class SolverOptions:
     min_alpha: float = 1e-8
     max_cg: int = 300           # conjugate-gradient iterations per Newton step
     watchdog: int = 4           # full Newton steps that may go uphill in energy (0: monotone)
+    predictor: str = "tangent"  # load steps: start of each step after the first ("tangent":
+    #                             cubic Hermite through the last two points and their tangents,
+    #                             with a direct method; "secant"; _predict)
+    max_dt: float = None        # load steps: the largest step in t (None: 1; steps=n with
+    #                             max_dt=1/n takes n equal steps unless one fails)
     arc_max_steps: int = 400    # arc length: path steps before giving up
     arc_ds: float = None        # arc length: first step (default: 1/steps in t)
     arc_max_ds: float = None    # arc length: largest step (default: 4x the first)
     stop: object = None         # arc length: callable(path point dict) -> reason to stop or None
 
     def __post_init__(self):
-        for name, allowed in (("globalization", GLOBALIZATIONS), ("path", PATHS),
+        for name, allowed in (("globalization", GLOBALIZATIONS), ("path", PATHS), ("predictor", PREDICTORS),
                               ("stability", STABILITY), ("reuse_factorization", REUSE),
                               ("factor_precision", PRECISIONS)):
             if getattr(self, name) not in allowed:
@@ -112,6 +121,8 @@ class SolverOptions:
         if self.factor_precision == "single" and self.path == "arclength":
             raise ValueError("factor_precision='single' with path='arclength': arc length finds "
                              "its folds from the inertia of every factorization; use 'double'")
+        if self.max_dt is not None and not (np.isfinite(self.max_dt) and 0 < self.max_dt <= 1):
+            raise ValueError(f"max_dt must be in (0, 1], got {self.max_dt!r}")
         for name in ("rtol", "max_iter", "max_cg", "arc_max_steps"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -785,30 +796,96 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
     history.steps.append((t, True))
     if opts.path == "arclength":
         return _arclength(problem, steps, opts, history, lin, g_ref, t, min_dt)
-    dt = (1.0 - t_start) / max(1, steps)
-    prev = None          # (t, free state) of the previous converged step: secant predictor
+    max_dt = opts.max_dt or 1.0
+    dt = min((1.0 - t_start) / max(1, steps), max_dt)
+    prev = None          # (t, free state, tangent, |dg/dt|) of the previous converged point
+    here = None          # the same of the current one (its tangent computed once)
+    failed_here = False  # a step from the current point failed: the retries use the secant
     while t < 1.0 - 1e-14:
         dt = min(dt, 1.0 - t)
         saved = problem.save_point()
-        x_now = problem.free_state()
+        if here is None:
+            # the tangent at the start serves the second step's predictor
+            # only (a first step from, e.g., a flat disc is taken from the
+            # start itself: there the tangent is the flat linear response)
+            x_now = problem.free_state()
+            wanted = opts.predictor == "tangent" and (prev is not None or t + dt < 1.0 - 1e-14)
+            here = (t, x_now, *(_tangent(problem, lin, x_now, t) if wanted else (None, 0.0)))
         t_new = t + dt
         problem.set_parameter(t_new)
-        if prev is not None:
-            problem.set_free_state(x_now + (dt / (t - prev[0])) * (x_now - prev[1]))
+        predictor = _predict(problem, here, prev, dt, tangents=not failed_here)
         if opts.verbose:
-            print(f"  step t = {t_new:.4f} (dt = {dt:.4f})", flush=True)
+            print(f"  step t = {t_new:.4f} (dt = {dt:.4f}, predictor: {predictor})", flush=True)
         n_before = len(history.iterations)
-        ok = equilibrium(problem, t_new, opts, history, max(g_ref, problem.load_scale()), lin,
-                         may_cut=0.5 * dt >= min_dt)
+        # force scale of the step: besides the loads, the force its increment
+        # of t puts on the converged state, dt |dg/dt| (known with the
+        # tangent; else the gradient at the start of the step stands for it,
+        # which a good predictor makes far too small)
+        g_step = max(g_ref, problem.load_scale(), dt * here[3])
+        ok = equilibrium(problem, t_new, opts, history, g_step, lin, may_cut=0.5 * dt >= min_dt)
         history.steps.append((t_new, ok))
         if ok:
-            prev = (t, x_now)
+            prev, here, failed_here = here, None, False
             t = t_new
             if len(history.iterations) - n_before < 6:
-                dt = min(2 * dt, 1.0 - t)
+                dt = min(2 * dt, 1.0 - t, max_dt)
         else:
+            failed_here = True
             dt = _step_back(problem, saved, t, dt, min_dt, opts, history, "step")
     return history
+
+
+def _tangent(problem, lin, x, t):
+    """(dx/dt, |dg/dt|) along the path at the converged state x (K dx/dt =
+    -dg/dt, the implicit function theorem on g(x, t) = 0) with the
+    factorization of K that the stability assessment left; dx/dt is None
+    without one (AMG) or where K is singular."""
+    if not lin.direct:
+        return None, 0.0
+    gt = _parameter_derivative(problem, x, t)
+    try:
+        d = lin.solver.solve(-gt)
+    except LinearSolverError:
+        return None, float(np.linalg.norm(gt))
+    d = lin.project(d) if lin.project is not None else d
+    return (d if np.all(np.isfinite(d)) else None), float(np.linalg.norm(gt))
+
+
+def _hermite(p0, p1, dt):
+    """The cubic through the points p0, p1 = (t, x, dx/dt, ...) evaluated at
+    t1 + dt (error O(dt^4) on a smooth path)."""
+    (t0, x0, d0), (t1, x1, d1) = p0[:3], p1[:3]
+    h = t1 - t0
+    s = 1.0 + dt / h
+    return ((2 * s**3 - 3 * s**2 + 1) * x0 + (s**3 - 2 * s**2 + s) * h * d0
+            + (-2 * s**3 + 3 * s**2) * x1 + (s**3 - s**2) * h * d1)
+
+
+def _predict(problem, here, prev, dt, tangents=True):
+    """Set the start of the Newton iterations at t + dt (the parameter is
+    set already) and name it.  The first step starts from the start state
+    (whose tangent, e.g. the flat linear response of a growing disc, leads
+    into a saddle: the 6-ring leaf took 30 instead of 14 Newton iterations
+    from it); later steps from the cubic Hermite extrapolation through the
+    last two converged points and their tangents (the tangent alone, Euler,
+    where the previous point has none); without tangents (AMG,
+    predictor="secant", or ``tangents=False``: a step from this point has
+    failed, as near a limit point, where K is nearly singular and the
+    tangent wild) from the secant through the two points.  Measured on the
+    Sze cantilever, 10 steps: 61 Newton iterations with the secant, 42 with
+    Hermite."""
+    t, x, d = here[:3]
+    if prev is None:
+        problem.set_free_state(x)
+        return "current state"
+    if tangents and d is not None:
+        if prev[2] is not None:
+            problem.set_free_state(_hermite(prev, here, dt))
+            return "Hermite"
+        problem.set_free_state(x + dt * d)
+        return "tangent"
+    problem.set_free_state(x + (dt / (t - prev[0])) * (x - prev[1]))
+    return "secant"
 
 
 def _step_back(problem, saved, t, step, min_step, opts, history, what):
