@@ -874,6 +874,8 @@ SMOOTH_DEFECT = 0.1
 
 
 def _smooth_between(p0, p1):
+    """The chord between the points (t, x, dx/dt, ...) p0, p1 agrees with
+    the trapezoid rule on their tangents to SMOOTH_DEFECT."""
     (t0, x0, d0), (t1, x1, d1) = p0[:3], p1[:3]
     chord = np.linalg.norm(x1 - x0)
     return np.linalg.norm(x1 - x0 - 0.5 * (t1 - t0) * (d0 + d1)) <= SMOOTH_DEFECT * chord
@@ -888,12 +890,11 @@ def _predict(problem, here, prev, dt, tangents=True):
     last two converged points and their tangents where the path between
     them is smooth (_smooth_between), else from the tangent alone (Euler:
     the step crossed a bifurcation, or the previous point has no tangent);
-    without tangents (AMG,
-    predictor="secant", or ``tangents=False``: a step from this point has
-    failed, as near a limit point, where K is nearly singular and the
-    tangent wild) from the secant through the two points.  Measured on the
-    Sze cantilever, 10 steps: 61 Newton iterations with the secant, 42 with
-    Hermite."""
+    without tangents (AMG, predictor="secant", or ``tangents=False``: a
+    step from this point has failed, as near a limit point, where K is
+    nearly singular and the tangent wild) from the secant through the two
+    points.  Measured on the Sze cantilever, 10 steps: 61 Newton iterations
+    with the secant, 42 with Hermite."""
     t, x, d = here[:3]
     if prev is None:
         problem.set_free_state(x)
