@@ -81,6 +81,34 @@ def test_tangent_predictor_saves_newton_iterations_on_the_same_path(cantilever_d
         np.testing.assert_allclose(tip_of(r, tip), tip_of(runs["secant"], tip), rtol=0, atol=1e-8)
 
 
+def test_parameter_derivative_is_exact_for_nodal_loads_and_numerical_otherwise():
+    """dg/dt (the tangent's right-hand side) from the shell where only nodal
+    forces depend on t: -f on the positions, equal to the central difference
+    of the gradient in t (which it replaces: two gradient evaluations per
+    load step); None (central differences) where the element energies
+    depend on t: growth, prescribed motions, face loads, pressure."""
+    from shellritz.solve import _parameter_derivative
+    shell, _ = cantilever()
+    shell._setup()
+    rng = np.random.default_rng(3)
+    x = shell.free_state() + 1e-2 * rng.standard_normal(len(shell.free))
+    shell.set_parameter(0.4)
+    exact = shell.parameter_derivative(x, 0.4)
+    assert exact is not None and np.count_nonzero(exact) == np.count_nonzero(shell._f_nodes)
+    shell.parameter_derivative = lambda x, t: None          # the numerical path
+    numerical = _parameter_derivative(shell, x, 0.4)
+    np.testing.assert_allclose(exact, numerical, rtol=0, atol=1e-6 * np.abs(exact).max())
+    for change in (lambda s: s.set_growth(G0=np.diag([1.1, 1.0, 1.0])),
+                   lambda s: s.clamp(s.mesh.nodes_on_plane("x", 10.0), rotation=[0.0, 0.1, 0.0]),
+                   lambda s: s.face_tractions(q_plus=[0.0, 0.0, 1.0]),
+                   lambda s: s.pressure(1.0)):
+        shell, _ = cantilever()
+        change(shell)
+        shell._setup()
+        shell.set_parameter(0.4)
+        assert shell.parameter_derivative(shell.free_state(), 0.4) is None
+
+
 def test_predictor_takes_the_tangent_alone_after_a_bifurcation():
     """The leaf in four load steps buckles within the first: the cubic
     through the flat start and the buckled state at t = 0.25 (its trapezoid

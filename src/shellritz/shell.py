@@ -110,6 +110,7 @@ class Shell(Solvable):
         # boundary conditions: list of (node, slot, comp) masks with values(t)
         self._fixed_user = np.zeros((n, 3, 3), bool)
         self._bc = []          # (mask, values(t, U)) applied in order
+        self._moving_bc = False   # some prescribed value changes with t
         self._frame_plane = {}  # node -> symmetry plane axes (frames)
         self._symmetry = []       # (nodes, axis, value)
         self._edges = []          # (kind, nodes, axis): hinges and diaphragms
@@ -217,6 +218,9 @@ class Shell(Solvable):
         mask = np.zeros((n, 3, 3), bool)
         for s in slots:
             mask[np.ix_(idx, [s], comp if s == 0 else [0, 1, 2])] = True
+
+        if rotation is not None or not np.array_equal(target, X0):
+            self._moving_bc = True
 
         def values(t, U):
             if 0 in slots:
@@ -548,6 +552,21 @@ class Shell(Solvable):
         self._p_t = t * self._pressure
         for mask, values in self._bc_setup:
             values(t, self.U)
+
+    def parameter_derivative(self, x, t):
+        """dg/dt at the free DOFs x, exactly, where only the nodal forces
+        (point forces, edge loads) depend on t: the energy's term -t f.r
+        gives dg/dt = -f on the positions.  None where growth, face
+        tractions, pressure or prescribed motions make the element energies
+        depend on t (the solver then differentiates numerically)."""
+        grows = (self._growth_fn is not None or np.any(self._G1)
+                 or not np.array_equal(self._G0, np.broadcast_to(np.eye(3), self._G0.shape)))
+        if (grows or self._moving_bc or self._pressure or np.any(self._q_plus)
+                or np.any(self._q_minus)):
+            return None
+        G = np.zeros((self.mesh.n_nodes, 3, 3))
+        G[:, 0] = -self._f_nodes
+        return G.reshape(-1)[self.free]
 
     def load_scale(self):
         return float(np.linalg.norm(self._f_t)) + abs(self._p_t) * np.sqrt(self.mesh.areas.sum())
