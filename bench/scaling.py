@@ -43,6 +43,8 @@ Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso 
 import argparse
 import json
 import os
+import resource
+import signal
 import subprocess
 import sys
 import time
@@ -170,6 +172,7 @@ def run(rings, solver, time_limit):
                MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
     coarser = nested_levels(rings) if solver.endswith("-nested") else []
     t = time.perf_counter()
+    peak_before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20
     try:
         p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL),
                             ",".join(map(str, coarser))], env=env,
@@ -180,9 +183,19 @@ def run(rings, solver, time_limit):
     for line in p.stdout.splitlines():
         if line.startswith("ROW "):
             return json.loads(line[4:])
-    return {"rings": rings, "solver": solver, "converged": False,
-            "error": f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:] or ''}",
-            "wall_s": time.perf_counter() - t}
+    row = {"rings": rings, "solver": solver, "converged": False, "wall_s": time.perf_counter() - t}
+    if p.returncode < 0:
+        # killed by a signal: SIGKILL from outside this script is the kernel's
+        # out-of-memory killer; the child's peak is the largest of this
+        # script's children when it exceeds those before it
+        name = signal.Signals(-p.returncode).name
+        row["error"] = f"killed by {name}" + (" (out of memory)" if name == "SIGKILL" else "")
+        peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20
+        if peak > peak_before:
+            row["peak_mem_gb"] = peak
+    else:
+        row["error"] = f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:] or ''}"
+    return row
 
 
 def chart(rows, path):
