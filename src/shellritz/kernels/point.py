@@ -276,17 +276,20 @@ def _solve_b(Binv, R, out):
 @njit(**KERNEL, inline="always")
 def _slot_jacobian(C, Zv, ncol, out):
     """out[(i,J), q] = d slot / d v_q with y2 fixed (blocks 0..4 direct,
-    5..7 via Zv), for the first ncol columns q (the others are zero).
-    Each entry is written once from registers (no zeroing pass, no
-    accumulation through memory: 4x faster)."""
+    5..7 via Zv), for the first ncol columns q (the others are zero)."""
+    for r in range(9):
+        for q in range(ncol):
+            out[r, q] = 0.0
     for i in range(3):
         for J in range(3):
             r = 3 * i + J
-            c0, c1, c2 = C[Y1_BLOCK, J], C[Y1_BLOCK + 1, J], C[Y1_BLOCK + 2, J]
-            for q in range(ncol):
-                out[r, q] = c0 * Zv[i, q] + c1 * Zv[3 + i, q] + c2 * Zv[6 + i, q]
             for p in range(ncol // 3):
                 out[r, 3 * p + i] += C[p, J]
+            for p in range(3):
+                c = C[Y1_BLOCK + p, J]
+                if c != 0.0:
+                    for q in range(ncol):
+                        out[r, q] += c * Zv[3 * p + i, q]
 
 
 @njit(**KERNEL, inline="always")
