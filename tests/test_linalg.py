@@ -274,6 +274,47 @@ def test_rigid_modes_free_only_where_no_support():
     assert np.abs(Q.T @ projector(Q)(v)).max() <= 1e-12
 
 
+def test_near_null_space_has_the_strain_gradient_terms_zero_modes():
+    """Where the strain-gradient term is on (elements shorter than h) the
+    AMG near null space adds six homogeneous strains S c to the rigid and
+    bending modes: on a flat free plate they are null vectors of the term's
+    Hessian (R = C |grad grad eps|^2 vanishes for linear displacements),
+    while a cubic in-plane displacement is not; without the term they are
+    not added."""
+    from shellritz import StVenantKirchhoff
+    mesh = shapes.rectangle(8, 8)
+    plain = Shell(mesh, 0.05, NeoHookean(1.0, nu=0.3))
+    thick = Shell(mesh, 0.3, StVenantKirchhoff.from_young(1.0, 0.3))
+    assert plain.strain_gradient is None and thick.strain_gradient is not None
+    for s in (plain, thick):
+        s._setup()
+        s.set_parameter(0.0)
+    assert plain.block_layout()[4]().shape[1] == 12
+    B = thick.block_layout()[4]()
+    assert B.shape[1] == 18
+    x = thick.free_state()
+    U = thick.U.copy()
+    data = np.zeros(thick._nnz)              # the term's Hessian alone, in K's pattern
+    thick.strain_gradient.add(2, thick, U, np.zeros_like(thick._Le), np.zeros_like(thick._G), data)
+    K = sp.csr_matrix((data, thick._indices, thick._indptr), shape=(len(x), len(x)))
+    KB = lower_matvec(K)(B)
+    scale = np.abs(K).max() * np.linalg.norm(B, axis=0)
+    strain = np.arange(7, 18, 2)             # bending and strain modes alternate after the six rigid
+    nonzero = strain[np.linalg.norm(B[:, strain], axis=0) > 0]     # S = e_z e_z vanishes on the plate
+    assert len(nonzero) == 5
+    assert np.all(np.linalg.norm(KB[:, nonzero], axis=0) <= 1e-10 * scale[nonzero])
+    # a strain curving in the plane is seen: u = c_x^3 e_x (c: the nodes / size)
+    r, a1, a2 = thick.U[:, 0], thick.U[:, 1], thick.U[:, 2]
+    size = np.abs(r - r.mean(axis=0)).max()
+    cx = (r[:, 0] - r[:, 0].mean()) / size
+    V = np.zeros((mesh.n_nodes, 3, 3))
+    V[:, 0, 0] = cx ** 3
+    V[:, 1, 0] = 3 * cx ** 2 * a1[:, 0] / size
+    V[:, 2, 0] = 3 * cx ** 2 * a2[:, 0] / size
+    v = V.reshape(-1)
+    assert np.linalg.norm(lower_matvec(K)(v)) > 1e-5 * np.abs(K).max() * np.linalg.norm(v)     # observed 3e-4
+
+
 @pytest.mark.parametrize("levels", ["one", "several"])
 def test_amg_preconditions_a_plate_hessian(levels, monkeypatch):
     """pyamg smoothed aggregation (9x9 blocks, rigid near null space) as the

@@ -640,7 +640,14 @@ class Shell(Solvable):
         bending modes, normal displacements c_i c_j n quadratic in the
         centred coordinates c (the softest modes of a thin shell after the
         rigid ones: with them smoothed aggregation needs 15 instead of 32 CG
-        iterations on the 12k-triangle leaf, 54 instead of 124 at 50k))."""
+        iterations on the 12k-triangle leaf, 54 instead of 124 at 50k), and,
+        where the strain-gradient term is on (elements shorter than h), six
+        homogeneous strains, displacements S c with S symmetric (no strain
+        gradient: the term, R = C |grad grad eps|^2, makes the operator of
+        sixth order at the mesh scale, and the coarse spaces must then
+        carry linear displacement fields; default leaf, CG to 1e-8 on the
+        Hessian at the solution, three levels: 40 -> 37 iterations at 50k
+        triangles, 59 -> 38 at 100k, README "Scaling"))."""
         n = self.mesh.n_nodes
 
         def rigid_modes():
@@ -667,6 +674,14 @@ class Shell(Solvable):
                 B[:, 1] = (grad * a1).sum(axis=1)[:, None] * nrm
                 B[:, 2] = (grad * a2).sum(axis=1)[:, None] * nrm
                 modes.append(B.reshape(9 * n, 1))
+                if self.strain_gradient is not None:
+                    S = np.zeros((3, 3))
+                    S[i, j] = S[j, i] = 1.0
+                    B = np.empty((n, 3, 3))
+                    B[:, 0] = c @ S                          # S c (S symmetric)
+                    B[:, 1] = a1 @ S / size
+                    B[:, 2] = a2 @ S / size
+                    modes.append(B.reshape(9 * n, 1))
             return np.hstack(modes)
         return 9, self.free, 9 * n, rigid_modes, near_null
 
