@@ -559,8 +559,7 @@ class Shell(Solvable):
         gives dg/dt = -f on the positions.  None where growth, face
         tractions, pressure or prescribed motions make the element energies
         depend on t (the solver then differentiates numerically)."""
-        grows = (self._growth_fn is not None or np.any(self._G1)
-                 or not np.array_equal(self._G0, np.broadcast_to(np.eye(3), self._G0.shape)))
+        grows = self._growth_fn is not None or np.any(self._G1) or np.any(self._G0 != np.eye(3))
         if (grows or self._moving_bc or self._pressure or np.any(self._q_plus)
                 or np.any(self._q_minus)):
             return None
