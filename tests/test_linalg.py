@@ -417,3 +417,46 @@ def test_amg_rebuild_keeps_one_previous_hierarchy_where_two_fit(room, monkeypatc
     amg.note_iterations(5 * amg.rebuild_growth + 6, "converged")       # a third build drops the first
     assert amg._previous is not first
     assert amg.restore_previous() == room
+
+
+def test_amg_restriction_is_p_transposed_without_a_copy_and_coarse_solve_is_direct(monkeypatch):
+    """The hierarchy's restrictions are P^T applied on P's own storage (no
+    second copy of P: 0.75 GB at the 199k-triangle leaf), equal to SciPy's
+    P^T x; the coarsest level is solved by one factorization of the direct
+    solver (PARDISO where present), made at the first cycle, equal to a
+    dense solve, with zero rows (a dependent near-null vector) on a unit
+    diagonal; release frees it."""
+    import shellritz.linalg as linalg
+    monkeypatch.setattr(linalg, "AMG_ONE_LEVEL_BLOCKS", 0)
+    monkeypatch.setattr(linalg, "AMG_COARSE_BLOCKS", 10)
+    s = _plate(16)
+    K = s.evaluate(s.free_state(), 2)[2]
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, s.block_layout())
+    amg.factorize(K)
+    ml = amg._ml
+    assert len(ml.levels) == 3
+    rng = np.random.default_rng(4)
+    for level in ml.levels[:-1]:
+        assert not sp.issparse(level.R)
+        x = rng.standard_normal(level.P.shape[0])
+        assert np.allclose(level.R @ x, level.P.T @ x, rtol=1e-14, atol=1e-14 * np.abs(x).sum())
+    amg.preconditioner()(rng.standard_normal(K.shape[0]))
+    coarse = ml.coarse_direct
+    A = ml.levels[-1].A
+    assert coarse._A is A and coarse._solver.name == resolve_method("auto", 0)
+    # this plate's coarsest level has zero rows (12 near-null vectors on
+    # aggregates that cannot tell some apart): solved on a unit diagonal
+    D = A.toarray()
+    empty = ~D.any(axis=1)
+    assert 0 < empty.sum() < len(D) // 2
+    b = rng.standard_normal(A.shape[0])
+    x = coarse(A, b)
+    assert np.array_equal(x[empty], b[empty])
+    b[empty] = 0.0
+    exact = np.zeros_like(b)
+    exact[~empty] = np.linalg.solve(D[np.ix_(~empty, ~empty)], b[~empty])
+    # relative error: the regularization (1e-10 of the largest pivot) times
+    # the condition number (4e4 here), one refinement step: observed 1.9e-7
+    assert np.linalg.norm(coarse(A, b) - exact) <= 1e-5 * np.linalg.norm(exact)
+    amg.release()
+    assert coarse._solver is None

@@ -54,7 +54,8 @@ AUTO_DIRECT_MAX_DOFS = 600_000
 
 # AMG: coarsening stops at this many block rows (pyamg counts blocks: the
 # coarse levels have one 12 x 12 block per aggregate, the near-null space
-# size), where SuperLU solves; at most 3,000 DOFs.  Measured on the 50k leaf
+# size), where the direct solver factorizes (_CoarseDirect; SuperLU when
+# measured here); at most 3,000 DOFs.  Measured on the 50k leaf
 # Hessian (226k DOFs, one CG solve to 1e-8, 2 threads): 3,000 blocks stopped
 # at a dense 23,000-DOF level 1 whose SuperLU factor took 50 s and 0.6 GB
 # (20 CG iterations); 250 blocks: three levels, a 576-DOF coarse solve, 77
@@ -70,9 +71,9 @@ AMG_COARSE_BLOCKS = 250
 # CG to 1e-8 on the Hessian at the solution): 80 / 78 iterations at 12k /
 # 50k triangles (three levels each), 269 at 100k with four levels (163 s of
 # CG), 75 with three (47.5 s; set-up 8.8 against 7.8 s).  The coarsest level
-# grows with the mesh (about 5 % of the DOFs of the second); at 1M
-# triangles the third level had 22k unknowns (SuperLU of such a level: about
-# 50 s and 0.6 GB, measured at 50k).
+# grows with the mesh (about 10 % of the DOFs of the second: 26k at 199k
+# triangles: the first W-cycle, which factorizes it, took 6.2 s with
+# PARDISO against 33.6 s with SuperLU; a cycle 3 s).
 AMG_MAX_LEVELS = 3
 # strength of connection: a coupling between two nodes whose block is below
 # this fraction of their diagonal blocks' (Frobenius norms) is weak and not
@@ -485,12 +486,15 @@ class AMGSolver:
         # a rebuild replaces the previous hierarchy: only the current one is
         # kept as a fallback, and not even that where two would not fit in
         # memory (1M-triangle leaf: 8.5 GB each, set-up peak 5 GB more)
+        self._release(self._previous)
         self._previous = None
         self.released_previous = (self._ml is not None
                                   and 2 * _hierarchy_bytes(self._ml) > _available_memory())
         if self.released_previous:
+            self._release(self._ml)
             self._ml = None
         A = self._embed(K)
+        coarse = _CoarseDirect()
         opts = dict(symmetry="symmetric",
                     strength=("symmetric", {"theta": AMG_STRENGTH_THETA}),
                     # pyamg's default relaxes the near-null space on level 0 first:
@@ -502,12 +506,15 @@ class AMGSolver:
                     postsmoother=AMG_SMOOTHER,
                     max_coarse=AMG_ONE_LEVEL_BLOCKS if self.one_level else AMG_COARSE_BLOCKS,
                     max_levels=AMG_MAX_LEVELS,
-                    coarse_solver="splu")
+                    coarse_solver=coarse)
         opts.update(self.options)
         with warnings.catch_warnings():
             # fewer near-null modes than DOFs per node (line engines): pyamg warns, on purpose here
             warnings.filterwarnings("ignore", message="Having less target vectors")
             ml = pyamg.smoothed_aggregation_solver(A, B=self.near_null(), **opts)
+        for level in ml.levels[:-1]:
+            level.R = _TransposeOf(level.P)      # pyamg's R = P^T is a copy of P
+        ml.coarse_direct = coarse
         self._previous, self._ml = self._ml, ml
         self._its_at_build = None
         self.builds += 1
@@ -537,6 +544,7 @@ class AMGSolver:
         there is none."""
         if self._previous is None:
             return False
+        self._release(self._ml)
         self._ml, self._previous = self._previous, None
         self._its_at_build = None
         return True
@@ -557,7 +565,85 @@ class AMGSolver:
         return False
 
     def release(self):
+        self._release(self._ml)
+        self._release(self._previous)
         self._ml = self._previous = None
+
+    @staticmethod
+    def _release(ml):
+        """Free a hierarchy's coarse factor (PARDISO keeps it until told)."""
+        if ml is not None and hasattr(ml, "coarse_direct"):
+            ml.coarse_direct.release()
+
+
+class _CoarseDirect:
+    """The coarsest level's solve (pyamg ``coarse_solver``): one LDL^T
+    factorization of the best direct method here (PARDISO's nested
+    dissection; SuperLU without it), made at the first call.  pyamg's
+    'splu' (SuperLU's column ordering of an unsymmetric LU) took 30 s and
+    0.84 GB for the 26k-DOF coarsest level of the 199k-triangle leaf (in
+    the first W-cycle of every hierarchy: 33.6 s, with PARDISO 6.2 s); the
+    coarsest level grows with the
+    mesh (AMG_MAX_LEVELS), to about 130k DOFs at 1M triangles.  Zero
+    rows (an aggregate whose near-null vectors were dependent: a zero
+    column of P) get a unit diagonal; the factorization is
+    regularized (REGULARIZATION: the coarse level of a free body carries
+    its rigid modes exactly)."""
+
+    def __init__(self):
+        self._A = self._solver = None
+
+    def __call__(self, A, b):
+        if A is not self._A:
+            self.release()
+            L = sp.tril(A.tocsr(), format="csr")
+            L.eliminate_zeros()
+            empty = L.diagonal() == 0.0
+            L = sp.csr_matrix(L + sp.diags(empty.astype(np.float64)))
+            L.sort_indices()
+            n = A.shape[0]
+            self._solver = DirectSolver(resolve_method("auto", n, has_blocks=False), n,
+                                        L.indptr, L.indices, regularize=True)
+            self._solver.factorize(L)
+            self._A = A
+        return self._solver.solve(np.ravel(b))
+
+    def release(self):
+        if self._solver is not None:
+            self._solver.release()
+        self._A = self._solver = None
+
+
+class _TransposeOf:
+    """P^T as an operator on P's own storage (the restriction of a
+    symmetric hierarchy; pyamg holds it as a second copy of P: 0.56 GB for
+    the finest level of the 199k-triangle leaf)."""
+
+    def __init__(self, P):
+        self.P = P
+        self.shape = (P.shape[1], P.shape[0])
+        self.dtype = P.dtype
+
+    def __matmul__(self, x):
+        P = self.P
+        return _bsr_transpose_matvec(P.indptr, P.indices, P.data, np.ascontiguousarray(x),
+                                     self.shape[0])
+
+
+@nb.njit(cache=True)
+def _bsr_transpose_matvec(indptr, indices, data, x, n_out):
+    """y = P^T x for the BSR matrix P = (indptr, indices, data (blocks, br, bc))."""
+    br, bc = data.shape[1], data.shape[2]
+    y = np.zeros(n_out)
+    for i in range(len(indptr) - 1):
+        for k in range(indptr[i], indptr[i + 1]):
+            j = indices[k]
+            for c in range(bc):
+                s = 0.0
+                for r in range(br):
+                    s += data[k, r, c] * x[i * br + r]
+                y[j * bc + c] += s
+    return y
 
 
 def _hierarchy_bytes(ml):
