@@ -36,7 +36,7 @@ preconditioner apart from the Newton forcing terms, with amg_levels,
 amg_setup_s, amg_cg_1e8_s, amg_strength_theta: linalg.AMG_STRENGTH_THETA,
 absent in rows measured before it existed, i.e. with 0) and bench/results/scaling.png.
 
-Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200]
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200] [--redo]
       python bench/scaling.py --quick        (rings 8 and 16)
 """
 
@@ -239,6 +239,8 @@ def main():
     ap.add_argument("--repeats", type=int, default=1,
                     help="fresh processes per size and method; the row of the median wall time is kept")
     ap.add_argument("--out", default=str(RESULTS / "scaling.json"))
+    ap.add_argument("--redo", action="store_true",
+                    help="rerun the sizes and methods the file already has (else they are skipped)")
     args = ap.parse_args()
     rings = [8, 16] if args.quick else args.rings
     out = Path(args.out if not args.quick else RESULTS / "scaling_quick.json")
@@ -248,7 +250,7 @@ def main():
         n_est = 6 * k * k
         for solver in args.solvers:
             limit = LIMITS[solver]
-            if ((k, solver) in done or (limit is not None and n_est > limit)
+            if (((k, solver) in done and not args.redo) or (limit is not None and n_est > limit)
                     or (solver.endswith("-nested") and not nested_levels(k))
                     or (solver.endswith("-coarsened") and n_est // FACTOR < COARSEST)):
                 continue
