@@ -11,7 +11,8 @@ import numpy as np
 
 def amg_cg_iterations(K, layout, finest=None, options=None):
     """CG on ``finest`` (default K; lower CSR) preconditioned by the solver's
-    hierarchy built on K (``options``: pyamg options over the solver's); with
+    hierarchy built on K (``options`` over the solver's: theta, omega, max_levels,
+    max_coarse; AMGSolver._build); with
     ``finest`` the hierarchy's finest level (residuals and smoother) is that
     matrix.  Returns dict(its, reason, setup_s, cg_s, levels, coarsest_blocks)
     (pyamg's count of the coarsest level: nodal blocks or aggregates)."""

@@ -496,8 +496,6 @@ class AMGSolver:
         return None
 
     def _build(self, K):
-        import warnings
-        import pyamg
         # a rebuild replaces the previous hierarchy: only the current one is
         # kept as a fallback, and not even that where two would not fit in
         # memory (1M-triangle leaf: 8.5 GB each, set-up peak 5 GB more)
@@ -510,27 +508,13 @@ class AMGSolver:
             self._ml = None
         A = self._embed(K)
         coarse = _CoarseDirect()
-        opts = dict(symmetry="symmetric",
-                    strength=("symmetric", {"theta": AMG_STRENGTH_THETA}),
-                    # pyamg's default relaxes the near-null space on level 0 first:
-                    # the rigid modes are exact up to the fixed DOFs, and it cost
-                    # 4.5 of the 7 s set-up at 50k for the same CG iterations (95 / 94)
-                    improve_candidates=None,
-                    smooth=("jacobi", {"omega": 4.0 / 3.0, "weighting": "local"}),
-                    presmoother=AMG_SMOOTHER,
-                    postsmoother=AMG_SMOOTHER,
-                    max_coarse=AMG_ONE_LEVEL_BLOCKS if self.one_level else AMG_COARSE_BLOCKS,
-                    max_levels=AMG_MAX_LEVELS,
-                    coarse_solver=coarse)
+        opts = dict(theta=AMG_STRENGTH_THETA, omega=4.0 / 3.0, max_levels=AMG_MAX_LEVELS,
+                    max_coarse=AMG_ONE_LEVEL_BLOCKS if self.one_level else AMG_COARSE_BLOCKS)
+        unknown = set(self.options) - set(opts)
+        if unknown:
+            raise ValueError(f"AMG options {sorted(unknown)}: choose from {sorted(opts)}")
         opts.update(self.options)
-        with warnings.catch_warnings():
-            # fewer near-null modes than DOFs per node (line engines): pyamg warns, on purpose here
-            warnings.filterwarnings("ignore", message="Having less target vectors")
-            ml = pyamg.smoothed_aggregation_solver(A, B=self.near_null(), **opts)
-        for level in ml.levels[:-1]:
-            level.R = _TransposeOf(level.P)      # pyamg's R = P^T is a copy of P
-        for level in ml.levels:
-            level.B = None          # the near-null vectors: set-up only (0.16 GB at 199k triangles)
+        ml = _smoothed_aggregation(A, self.near_null(), coarse, **opts)
         ml.coarse_direct = coarse
         self._previous, self._ml = self._ml, ml
         self._its_at_build = None
@@ -591,6 +575,151 @@ class AMGSolver:
         """Free a hierarchy's coarse factor (PARDISO keeps it until told)."""
         if ml is not None and hasattr(ml, "coarse_direct"):
             ml.coarse_direct.release()
+
+
+def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coarse):
+    """The smoothed-aggregation hierarchy of the BSR matrix A (symmetric)
+    with near-null space B: pyamg's (``smoothed_aggregation_solver`` with
+    symmetric strength ``theta``, standard aggregation, no relaxation of B,
+    Jacobi prolongation smoothing with 'local' weighting ``omega``, block
+    Gauss-Seidel smoothers, coarsening while a level has more than
+    ``max_coarse`` blocks and there are fewer than ``max_levels`` levels),
+    built from pyamg's parts, with the two steps that hold memory done
+    without pyamg's temporaries: the prolongation smoothing scales and
+    corrects A T in place (pyamg copies A twice for |A| and D^-1 A), and
+    the Galerkin product P^T (A P) is summed into its block pattern
+    (_galerkin) with the restriction as a view of P (pyamg: a copy of P,
+    R A, R A P).  The same hierarchy up to round-off (tested)."""
+    from pyamg.aggregation import fit_candidates, standard_aggregation
+    from pyamg.multilevel import MultilevelSolver
+    from pyamg.relaxation.smoothing import change_smoothers
+    from pyamg.strength import symmetric_strength_of_connection
+    levels = []
+    while True:
+        level = MultilevelSolver.Level()
+        level.A = A
+        levels.append(level)
+        if len(levels) >= max_levels or A.shape[0] // A.blocksize[0] <= max_coarse:
+            break
+        C = symmetric_strength_of_connection(A, theta=theta)
+        T, B = fit_candidates(standard_aggregation(C)[0], B)
+        del C
+        P = _smoothed_prolongator(A, T, omega)
+        level.P, level.R = P, _TransposeOf(P)
+        A = _galerkin(A, P)
+    ml = MultilevelSolver(levels, coarse_solver=coarse_solver)
+    change_smoothers(ml, AMG_SMOOTHER, AMG_SMOOTHER)
+    return ml
+
+
+def _smoothed_prolongator(A, T, omega):
+    """P = T - omega D^-1 A T, D the row sums of |A| (pyamg's Jacobi
+    prolongation smoother, weighting 'local'), written into A T."""
+    AT = (A @ T).tobsr(blocksize=T.blocksize)
+    AT.sort_indices()
+    T.sort_indices()
+    _scale_rows_add(A.indptr, A.data, omega, AT.indptr, AT.indices, AT.data, T.indptr, T.indices, T.data)
+    return AT
+
+
+@nb.njit(cache=True)
+def _scale_rows_add(a_ptr, a_data, omega, ptr, idx, data, t_ptr, t_idx, t_data):
+    """data (the BSR A T) <- T - omega D^-1 data, D the row sums of |A|
+    (rows with D = 0 scaled by 0), T's blocks added at their positions in
+    A T's pattern (which holds them: A has its diagonal blocks)."""
+    b = data.shape[1]
+    for i in range(len(ptr) - 1):
+        for r in range(b):
+            d = 0.0
+            for k in range(a_ptr[i], a_ptr[i + 1]):
+                for c in range(a_data.shape[2]):
+                    d += abs(a_data[k, r, c])
+            s = -omega / d if d != 0.0 else 0.0
+            for k in range(ptr[i], ptr[i + 1]):
+                for c in range(data.shape[2]):
+                    data[k, r, c] *= s
+        for kt in range(t_ptr[i], t_ptr[i + 1]):
+            k = ptr[i] + np.searchsorted(idx[ptr[i]:ptr[i + 1]], t_idx[kt])
+            if k == ptr[i + 1] or idx[k] != t_idx[kt]:
+                raise ValueError("A T lacks a block of T")
+            data[k] += t_data[kt]
+
+
+def _galerkin(A, P):
+    """P^T A P (BSR), summed row by row of P^T into its block pattern:
+    for each coarse row I, the products P_iI^T A_ij P_jJ over the fine
+    rows i of P's column I, their A blocks (i, j) and P's blocks (j, J);
+    no transposed copy of P and no A P (pyamg's R A and R A P held 1.2 GB
+    beyond the result at 199k triangles, A P alone would be about twice P)."""
+    n_coarse = P.shape[1] // P.blocksize[1]
+    A.sort_indices()
+    P.sort_indices()
+    ptr, idx, data = _galerkin_blocks(A.indptr, A.indices, A.data, P.indptr, P.indices, P.data, n_coarse)
+    return sp.bsr_matrix((data, idx, ptr), shape=(P.shape[1], P.shape[1]))
+
+
+@nb.njit(cache=True)
+def _galerkin_blocks(a_ptr, a_idx, a_data, p_ptr, p_idx, p_data, n_coarse):
+    """Blocks of P^T A P for BSR A = (a_ptr, a_idx, a_data), P = (p_ptr, p_idx, p_data)."""
+    c = p_data.shape[2]
+    n_fine = len(p_ptr) - 1
+    # P^T's pattern: for each coarse row I the fine rows i and P's block numbers k
+    t_ptr = np.zeros(n_coarse + 1, np.int64)
+    for k in range(len(p_idx)):
+        t_ptr[p_idx[k] + 1] += 1
+    for I in range(n_coarse):
+        t_ptr[I + 1] += t_ptr[I]
+    t_row = np.empty(len(p_idx), np.int64)
+    t_blk = np.empty(len(p_idx), np.int64)
+    fill = t_ptr[:-1].copy()
+    for i in range(n_fine):
+        for k in range(p_ptr[i], p_ptr[i + 1]):
+            I = p_idx[k]
+            t_row[fill[I]] = i
+            t_blk[fill[I]] = k
+            fill[I] += 1
+    # the product's pattern, counted in the first sweep, written in the second
+    mark = np.full(n_coarse, -1, np.int64)
+    ptr = np.zeros(n_coarse + 1, np.int64)
+    idx = np.empty(0, np.int64)
+    for sweep in range(2):
+        mark[:] = -1
+        for I in range(n_coarse):
+            at = ptr[I] if sweep == 1 else 0
+            for q in range(t_ptr[I], t_ptr[I + 1]):
+                i = t_row[q]
+                for ka in range(a_ptr[i], a_ptr[i + 1]):
+                    j = a_idx[ka]
+                    for kp in range(p_ptr[j], p_ptr[j + 1]):
+                        J = p_idx[kp]
+                        if mark[J] != I:
+                            mark[J] = I
+                            if sweep == 1:
+                                idx[at] = J
+                            at += 1
+            if sweep == 0:
+                ptr[I + 1] = at
+            else:
+                idx[ptr[I]:at] = np.sort(idx[ptr[I]:at])
+        if sweep == 0:
+            for I in range(n_coarse):
+                ptr[I + 1] += ptr[I]
+            idx = np.empty(ptr[n_coarse], np.int64)
+    # values: slot[J] = the position of block (I, J) while row I is summed
+    data = np.zeros((ptr[n_coarse], c, c))
+    slot = np.empty(n_coarse, np.int64)
+    for I in range(n_coarse):
+        for s in range(ptr[I], ptr[I + 1]):
+            slot[idx[s]] = s
+        for q in range(t_ptr[I], t_ptr[I + 1]):
+            i, kt = t_row[q], t_blk[q]
+            for ka in range(a_ptr[i], a_ptr[i + 1]):
+                w = p_data[kt].T @ a_data[ka]              # P_iI^T A_ij
+                j = a_idx[ka]
+                for kp in range(p_ptr[j], p_ptr[j + 1]):
+                    out = data[slot[p_idx[kp]]]
+                    out += w @ p_data[kp]
+    return ptr, idx, data
 
 
 class _CoarseDirect:
