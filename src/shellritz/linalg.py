@@ -646,22 +646,27 @@ def _scale_rows_add(a_ptr, a_data, omega, ptr, idx, data, t_ptr, t_idx, t_data):
 
 
 def _galerkin(A, P):
-    """P^T A P (BSR), summed row by row of P^T into its block pattern:
+    """P^T A P (BSR), summed row by row of P^T into its block pattern (the
+    rows in chunks on the assembly's threads, kernels/parallel.py):
     for each coarse row I, the products P_iI^T A_ij P_jJ over the fine
     rows i of P's column I, their A blocks (i, j) and P's blocks (j, J);
     no transposed copy of P and no A P (pyamg's R A and R A P held 1.2 GB
     beyond the result at 199k triangles, A P alone would be about twice P)."""
+    from .kernels.parallel import run_chunks
     n_coarse = P.shape[1] // P.blocksize[1]
     A.sort_indices()
     P.sort_indices()
-    ptr, idx, data = _galerkin_blocks(A.indptr, A.indices, A.data, P.indptr, P.indices, P.data, n_coarse)
+    t_ptr, t_row, t_blk, ptr, idx = _galerkin_pattern(A.indptr, A.indices, P.indptr, P.indices, n_coarse)
+    data = np.zeros((len(idx), P.blocksize[1], P.blocksize[1]))
+    run_chunks(_galerkin_rows, 0, n_coarse, t_ptr, t_row, t_blk, ptr, idx, A.indptr, A.indices, A.data,
+               P.indptr, P.indices, P.data, data, min_chunk=64)
     return sp.bsr_matrix((data, idx, ptr), shape=(P.shape[1], P.shape[1]))
 
 
 @nb.njit(cache=True)
-def _galerkin_blocks(a_ptr, a_idx, a_data, p_ptr, p_idx, p_data, n_coarse):
-    """Blocks of P^T A P for BSR A = (a_ptr, a_idx, a_data), P = (p_ptr, p_idx, p_data)."""
-    c = p_data.shape[2]
+def _galerkin_pattern(a_ptr, a_idx, p_ptr, p_idx, n_coarse):
+    """The block pattern (ptr, idx) of P^T A P for the BSR patterns of A
+    and P, with P^T's (t_ptr; fine rows t_row, P's block numbers t_blk)."""
     n_fine = len(p_ptr) - 1
     # P^T's pattern: for each coarse row I the fine rows i and P's block numbers k
     t_ptr = np.zeros(n_coarse + 1, np.int64)
@@ -705,10 +710,15 @@ def _galerkin_blocks(a_ptr, a_idx, a_data, p_ptr, p_idx, p_data, n_coarse):
             for I in range(n_coarse):
                 ptr[I + 1] += ptr[I]
             idx = np.empty(ptr[n_coarse], np.int64)
-    # values: slot[J] = the position of block (I, J) while row I is summed
-    data = np.zeros((ptr[n_coarse], c, c))
-    slot = np.empty(n_coarse, np.int64)
-    for I in range(n_coarse):
+    return t_ptr, t_row, t_blk, ptr, idx
+
+
+@nb.njit(cache=True, nogil=True)
+def _galerkin_rows(lo, hi, t_ptr, t_row, t_blk, ptr, idx, a_ptr, a_idx, a_data, p_ptr, p_idx, p_data, data):
+    """Rows lo .. hi - 1 of P^T A P into data (blocks in _galerkin_pattern's
+    pattern); slot[J] is the position of block (I, J) while row I is summed."""
+    slot = np.empty(len(t_ptr) - 1, np.int64)
+    for I in range(lo, hi):
         for s in range(ptr[I], ptr[I + 1]):
             slot[idx[s]] = s
         for q in range(t_ptr[I], t_ptr[I + 1]):
@@ -719,7 +729,6 @@ def _galerkin_blocks(a_ptr, a_idx, a_data, p_ptr, p_idx, p_data, n_coarse):
                 for kp in range(p_ptr[j], p_ptr[j + 1]):
                     out = data[slot[p_idx[kp]]]
                     out += w @ p_data[kp]
-    return ptr, idx, data
 
 
 class _CoarseDirect:
