@@ -44,6 +44,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .kernels.parallel import run_chunks
+
 METHODS = ("auto", "pardiso", "superlu", "amg")
 
 # Above this many free DOFs "auto" prefers AMG to a factorization (memory:
@@ -652,7 +654,6 @@ def _galerkin(A, P):
     rows i of P's column I, their A blocks (i, j) and P's blocks (j, J);
     no transposed copy of P and no A P (pyamg's R A and R A P held 1.2 GB
     beyond the result at 199k triangles, A P alone would be about twice P)."""
-    from .kernels.parallel import run_chunks
     n_coarse = P.shape[1] // P.blocksize[1]
     A.sort_indices()
     P.sort_indices()
@@ -738,12 +739,11 @@ class _CoarseDirect:
     'splu' (SuperLU's column ordering of an unsymmetric LU) took 30 s and
     0.84 GB for the 26k-DOF coarsest level of the 199k-triangle leaf (in
     the first W-cycle of every hierarchy: 33.6 s, with PARDISO 6.2 s); the
-    coarsest level grows with the
-    mesh (AMG_MAX_LEVELS), to about 130k DOFs at 1M triangles.  Zero
-    rows (an aggregate whose near-null vectors were dependent: a zero
-    column of P) get a unit diagonal; the factorization is
-    regularized (REGULARIZATION: the coarse level of a free body carries
-    its rigid modes exactly)."""
+    coarsest level grows with the mesh (AMG_MAX_LEVELS), to about 130k
+    DOFs at 1M triangles.  Zero rows (an aggregate whose near-null vectors
+    were dependent: a zero column of P) get a unit diagonal; the
+    factorization is regularized (REGULARIZATION: the coarse level of a
+    free body carries its rigid modes exactly)."""
 
     def __init__(self):
         self._A = self._solver = None
