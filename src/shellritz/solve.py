@@ -482,7 +482,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                 continue
             if trial is not None:
                 if watch is None and trial[0] >= E:
-                    watch = dict(saved=problem.save_point(), x=x, E=E, g=g, K=K, gnorm=gnorm,
+                    watch = dict(saved=problem.save_point(), x=x, E=E, gnorm=gnorm,
                                  steps=0, predicted=-(g @ p + 0.5 * (p @ matvec(p))))
                 x = x + p
                 problem.set_free_state(x)
@@ -610,9 +610,13 @@ def _watchdog_trial(problem, x, p, newton_step, g, matvec, noise):
 
 
 def _back_to(problem, watch):
-    """Restore the watchdog's monotone point: (x, E, g, K, |g|)."""
+    """Restore the watchdog's monotone point: (x, E, g, K, |g|).  Its
+    gradient and Hessian are assembled again (the watchdog seldom returns;
+    keeping its Hessian would hold three at once: 2.1 GB each at 1M
+    triangles)."""
     problem.restore_point(watch["saved"])
-    return watch["x"], watch["E"], watch["g"], watch["K"], watch["gnorm"]
+    E, g, K = problem.evaluate(watch["x"], 2)
+    return watch["x"], E, g, K, np.linalg.norm(g)
 
 
 def _trust_trial(problem, x, p, E, gnorm, predicted, noise, with_hessian):
