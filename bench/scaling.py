@@ -104,7 +104,8 @@ try:
         from shellritz.meshdata import Surface
         from shellritz.scenefile import load_scene
         scene = load_scene(files("shellritz.meshes") / "leaf.toml")
-        res = solve_nested(lambda mesh: scene.build(Surface(mesh))[0], shell.mesh, verbose=False,
+        mesh, shell = shell.mesh, None       # solve_nested builds the scene on the mesh: one Shell
+        res = solve_nested(lambda mesh: scene.build(Surface(mesh))[0], mesh, verbose=False,
                            linear=linear, rtol=rtol)
         shell = res.shell
         row["nested_levels"] = res.history.nested
@@ -120,6 +121,7 @@ try:
     h, converged, error = res.history, True, None
 except SolveError as exc:
     h, converged, error = exc.history, False, str(exc)
+    shell = shell or leaf(rings)
 row["wall_s"] = time.perf_counter() - t
 x = shell.free_state()
 times = []
