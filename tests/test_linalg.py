@@ -446,6 +446,24 @@ def test_amg_rebuild_keeps_one_previous_hierarchy_where_two_fit(room, monkeypatc
     assert amg.restore_previous() == room
 
 
+def test_amg_rebuild_counts_iterations_per_decade_of_the_forcing_tolerance():
+    """The rebuild test compares CG iterations per decade of residual
+    reduction: a solve to 1e-3 taking three times the iterations of the
+    first to 0.1 keeps the hierarchy, the same count to 0.1 rebuilds it; a
+    solve stopped on the trust-region boundary counts as one decade."""
+    s = _plate(8)
+    _, _, K = s.evaluate(s.free_state(), 2)
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, s.block_layout())
+    amg.factorize(K)
+    slow = int(5 * amg.rebuild_growth + 6)
+    amg.note_iterations(5, "converged", 0.1)
+    assert amg.note_iterations(slow, "converged", 1e-3) == 0.0 and amg.builds == 1
+    assert amg.note_iterations(slow, "boundary", 1e-3) > 0 and amg.builds == 2
+    amg.note_iterations(5, "converged", 0.1)
+    assert amg.note_iterations(slow, "converged", 0.1) > 0 and amg.builds == 3
+    amg.release()
+
+
 def test_amg_restriction_is_p_transposed_without_a_copy_and_coarse_solve_is_direct(monkeypatch):
     """The hierarchy's restrictions are P^T applied on P's own storage (no
     second copy of P: 0.75 GB at the 199k-triangle leaf), equal to SciPy's

@@ -522,18 +522,27 @@ class AMGSolver:
         self._its_at_build = None
         self.builds += 1
 
-    def note_iterations(self, its, reason):
-        """After a CG solve: rebuild the hierarchy on the current Hessian if
-        CG slowed down -- more than ``rebuild_growth`` times the iterations
-        of the first solve after the last build (counted as at least
-        REBUILD_MIN_ITS: a first solve cut after an iteration or two on the
-        trust-region boundary says nothing) plus 5 -- without meeting
+    def note_iterations(self, its, reason, rtol=0.1):
+        """After a CG solve to the relative residual ``rtol``: rebuild the
+        hierarchy on the current Hessian if CG slowed down -- more than
+        ``rebuild_growth`` times the iterations per decade of residual
+        reduction of the first solve after the last build (counted as at
+        least REBUILD_MIN_ITS: a first solve cut after an iteration or two
+        on the trust-region boundary says nothing) plus 5 -- without meeting
         negative curvature (a cycle of an indefinite Hessian is no SPD
-        preconditioner).  Returns the seconds spent rebuilding (0: kept)."""
+        preconditioner).  Per decade (log10(1/rtol), at least one; a solve
+        stopped on the boundary counts one): the inexact Newton tightens
+        rtol as it converges, and more iterations for more decades are no
+        sign of a stale hierarchy (199k-triangle leaf from its 50k solution:
+        5 then 19 CG iterations at rtol 0.1 and about 1e-3 rebuilt it for
+        nothing, 25 s and a second hierarchy).  Returns the seconds spent
+        rebuilding (0: kept)."""
+        decades = max(np.log10(1.0 / rtol), 1.0) if reason == "converged" else 1.0
+        per_decade = its / decades
         if self._its_at_build is None:
-            self._its_at_build = max(its, REBUILD_MIN_ITS)
+            self._its_at_build = max(per_decade, REBUILD_MIN_ITS)
             return 0.0
-        if its > self.rebuild_growth * self._its_at_build + 5 and reason != "negative curvature":
+        if per_decade > self.rebuild_growth * self._its_at_build + 5 and reason != "negative curvature":
             t0 = time.perf_counter()
             self._build(self.K)
             return time.perf_counter() - t0

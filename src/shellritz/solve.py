@@ -457,7 +457,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             factorized = False
             continue
         if not lin.direct:
-            rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"])
+            rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"], eta)
             setup += rebuilt
             if rebuilt:
                 note = (f"t={t:.4g} it={it}: AMG hierarchy rebuilt ({info['iterations']} CG iterations)"
