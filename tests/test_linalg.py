@@ -2,6 +2,8 @@
 the direct methods, the two factor slots, the Steihaug-Toint conjugate
 gradients, the free rigid motions, AMG, method names."""
 
+import types
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -462,6 +464,46 @@ def test_amg_rebuild_counts_iterations_per_decade_of_the_forcing_tolerance():
     amg.note_iterations(5, "converged", 0.1)
     assert amg.note_iterations(slow, "converged", 0.1) > 0 and amg.builds == 3
     amg.release()
+
+
+@pytest.mark.parametrize("room", [True, False])
+def test_amg_keeps_the_rigid_and_bending_vectors_where_memory_is_short(room, monkeypatch):
+    """With the strain-gradient term on (elements shorter than h) the near
+    null space has 18 vectors, rigid and bending modes first (the same as
+    without the term) and the six homogeneous strains last; where the
+    hierarchy would not leave room for the Newton iteration
+    (_hierarchy_need) AMG builds on the first twelve: coarse blocks of 12
+    instead of 18, said in lean_near_null and in the solve's history."""
+    import shellritz.linalg as linalg
+    from shellritz.solve import _Linear
+    monkeypatch.setattr(linalg, "AMG_ONE_LEVEL_BLOCKS", 0)
+    monkeypatch.setattr(linalg, "AMG_COARSE_BLOCKS", 10)
+    monkeypatch.setattr(linalg, "_available_memory", lambda: float("inf") if room else 0)
+    mesh = shapes.rectangle(12, 12)
+    layouts = []
+    for h in (0.3, 0.001):
+        s = Shell(mesh, h, NeoHookean(1.0, nu=0.3))
+        s.clamp(mesh.nodes_where(lambda X: X[:, 0] < 1e-9))
+        s._setup()
+        s.set_parameter(0.0)
+        layouts.append(s.block_layout()[4]())
+        if h == 0.3:
+            assert s.strain_gradient is not None
+            shell = s
+    assert layouts[0].shape[1] == 18 and layouts[1].shape[1] == 12
+    assert np.array_equal(layouts[0][:, :12], layouts[1])
+    K = shell.evaluate(shell.free_state(), 2)[2]
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, shell.block_layout())
+    amg.factorize(K)
+    assert amg.lean_near_null == (not room)
+    assert amg._ml.levels[0].P.blocksize == (9, 18 if room else 12)
+    amg.release()
+    history = types.SimpleNamespace(notes=[], factorizations=0, linear=None)
+    opts = types.SimpleNamespace(linear="amg", factor_precision="double", verbose=False)
+    lin = _Linear(shell, opts, history)
+    lin.factorize(K)
+    assert any("near-null vectors only" in n for n in history.notes) == (not room)
+    lin.release()
 
 
 def test_amg_restriction_is_p_transposed_without_a_copy_and_coarse_solve_is_direct(monkeypatch):

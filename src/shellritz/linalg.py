@@ -77,6 +77,25 @@ AMG_COARSE_BLOCKS = 250
 # triangles: the first W-cycle, which factorizes it, took 6.2 s with
 # PARDISO against 33.6 s with SuperLU; a cycle 3 s).
 AMG_MAX_LEVELS = 3
+# memory: where the hierarchy with the whole near null space (18 vectors on
+# the triangle engine with its strain-gradient term) would not leave room
+# for the Newton iteration, only its first AMG_LEAN_NEAR_NULL vectors (rigid
+# and bending modes) are used: the levels below the finest scale with the
+# square of their number (18 -> 12: the first coarse operator 2.25 times
+# smaller), at more CG iterations (100k leaf: 59 instead of 38 to 1e-8).
+# The hierarchy beyond the finest operator A_0 takes about
+# (AMG_P_SHARE k + AMG_COARSE_SHARE k^2) / 18^2 times A_0's bytes for k
+# vectors, measured on the 1M-triangle leaf (2026-12-04, k = 18: P_0 in
+# single precision 0.33 A_0, the coarse operators, P_1 and the coarsest
+# factor 1.62 A_0); the Newton iteration needs room for AMG_NEWTON_HESSIANS
+# Hessians' values besides (the 1M leaf ran out of memory at its first
+# Newton step with 18 vectors: resident 12.4 GB after A_0, killed at 24.9
+# GB, at least 4.3 GB = 2 Hessians' values beyond the hierarchy; one more
+# for margin).
+AMG_LEAN_NEAR_NULL = 12
+AMG_P_SHARE = 0.33 * 18
+AMG_COARSE_SHARE = 1.62
+AMG_NEWTON_HESSIANS = 3
 # strength of connection: a coupling between two nodes whose block is below
 # this fraction of their diagonal blocks' (Frobenius norms) is weak and not
 # aggregated along.  theta = 0 (every coupling strong) aggregated across the
@@ -467,6 +486,7 @@ class AMGSolver:
         self.K = None
         self.builds = 0
         self.released_previous = False
+        self.lean_near_null = False     # the last build kept AMG_LEAN_NEAR_NULL vectors only
 
     def _embed(self, K):
         """The symmetric Hessian in the full nodal numbering as a BSR matrix
@@ -516,7 +536,12 @@ class AMGSolver:
         if unknown:
             raise ValueError(f"AMG options {sorted(unknown)}: choose from {sorted(opts)}")
         opts.update(self.options)
-        ml = _smoothed_aggregation(A, self.near_null(), coarse, **opts)
+        B = self.near_null()
+        self.lean_near_null = (B.shape[1] > AMG_LEAN_NEAR_NULL
+                               and _hierarchy_need(A, K, B.shape[1]) > _available_memory())
+        if self.lean_near_null:
+            B = np.ascontiguousarray(B[:, :AMG_LEAN_NEAR_NULL])
+        ml = _smoothed_aggregation(A, B, coarse, **opts)
         ml.coarse_direct = coarse
         self._previous, self._ml = self._ml, ml
         self._its_at_build = None
@@ -863,6 +888,13 @@ def _hierarchy_bytes(ml):
             if sp.issparse(M) or isinstance(M, _SingleBSR):
                 total += M.data.nbytes + M.indices.nbytes + M.indptr.nbytes
     return total
+
+
+def _hierarchy_need(A, K, k):
+    """Bytes a hierarchy with k near-null vectors on the finest operator A
+    needs beyond A, with room for the Newton iteration (AMG_LEAN_NEAR_NULL)."""
+    a = A.data.nbytes + A.indices.nbytes
+    return a * (AMG_P_SHARE * k + AMG_COARSE_SHARE * k * k) / 18**2 + AMG_NEWTON_HESSIANS * K.data.nbytes
 
 
 def _available_memory():

@@ -646,7 +646,9 @@ class Shell(Solvable):
         sixth order at the mesh scale, and the coarse spaces must then
         carry linear displacement fields; default leaf, CG to 1e-8 on the
         Hessian at the solution, three levels: 40 -> 37 iterations at 50k
-        triangles, 59 -> 38 at 100k, README "Scaling"))."""
+        triangles, 59 -> 38 at 100k, README "Scaling")); the columns in
+        that order (rigid, bending, strains): where memory is short, AMG
+        keeps the first twelve (AMGSolver, AMG_LEAN_NEAR_NULL)."""
         n = self.mesh.n_nodes
 
         def rigid_modes():
@@ -663,7 +665,7 @@ class Shell(Solvable):
             nrm /= np.linalg.norm(nrm, axis=1)[:, None]
             size = max(np.abs(r - r.mean(axis=0)).max(), 1e-300)
             c = (r - r.mean(axis=0)) / size
-            modes = [rigid_modes()]
+            modes, strains = [rigid_modes()], []
             for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)):
                 grad = np.zeros_like(c)            # d(c_i c_j)/dr
                 grad[:, i] += c[:, j] / size
@@ -680,8 +682,8 @@ class Shell(Solvable):
                     B[:, 0] = c @ S                          # S c (S symmetric)
                     B[:, 1] = a1 @ S / size
                     B[:, 2] = a2 @ S / size
-                    modes.append(B.reshape(9 * n, 1))
-            return np.hstack(modes)
+                    strains.append(B.reshape(9 * n, 1))
+            return np.hstack(modes + strains)      # in order of importance (AMGSolver may cut)
         return 9, self.free, 9 * n, rigid_modes, near_null
 
     def _node_positions(self, nodes):

@@ -52,8 +52,9 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .linalg import (PRECISIONS, CGPath, LinearSolverError, free_rigid_modes, jacobi,
-                     lower_matvec, make_linear_solver, projector, resolve_method, steihaug_cg)
+from .linalg import (AMG_LEAN_NEAR_NULL, PRECISIONS, CGPath, LinearSolverError, free_rigid_modes,
+                     jacobi, lower_matvec, make_linear_solver, projector, resolve_method,
+                     steihaug_cg)
 
 GLOBALIZATIONS = ("auto", "trust-region", "line-search")
 PATHS = ("load", "arclength")
@@ -213,13 +214,26 @@ class _Linear:
         if self.solver is None:
             self.solver = self._new_solver(self.opts.linear, K, self.opts.factor_precision, layout)
             self.history.linear = self.solver.name
+        builds = getattr(self.solver, "builds", 0)
         try:
             negative = self.solver.factorize(K, exact_inertia)
         except LinearSolverError as exc:
             self.history.notes.append(f"{self.solver.name}: {exc}")
             negative = None
+        if getattr(self.solver, "builds", 0) > builds:
+            self.note_lean_hierarchy()
         self.history.factorizations += 1
         return negative, time.perf_counter() - t0
+
+    def note_lean_hierarchy(self):
+        """A history note (and a line with verbose) when the AMG hierarchy
+        just built has the lean near null space (AMG_LEAN_NEAR_NULL)."""
+        if getattr(self.solver, "lean_near_null", False):
+            note = (f"AMG: hierarchy on the first {AMG_LEAN_NEAR_NULL} near-null vectors only "
+                    "(not enough memory for all; more CG iterations)")
+            self.history.notes.append(note)
+            if self.opts.verbose:
+                print("    " + note, flush=True)
 
     def may_reuse(self, opts, n):
         """The next Newton step (n free DOFs) may be solved with the last
@@ -460,6 +474,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"], eta)
             setup += rebuilt
             if rebuilt:
+                lin.note_lean_hierarchy()
                 note = (f"t={t:.4g} it={it}: AMG hierarchy rebuilt ({info['iterations']} CG iterations)"
                         + ("; the previous one released first: no memory for two"
                            if lin.solver.released_previous else ""))
