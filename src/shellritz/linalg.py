@@ -685,8 +685,9 @@ def _scale_rows_add(a_ptr, a_data, omega, ptr, idx, data, t_ptr, t_idx, t_data):
 
 
 def _galerkin(A, P):
-    """P^T A P (BSR; P a _SingleBSR), summed row by row of P^T into its block pattern (the
-    rows in chunks on the assembly's threads, kernels/parallel.py):
+    """P^T A P (BSR; P a _SingleBSR), summed row by row of P^T into its
+    block pattern (the rows in chunks on the assembly's threads,
+    kernels/parallel.py):
     for each coarse row I, the products P_iI^T A_ij P_jJ over the fine
     rows i of P's column I, their A blocks (i, j) and P's blocks (j, J);
     no transposed copy of P and no A P (pyamg's R A and R A P held 1.2 GB
@@ -821,11 +822,10 @@ class _CoarseDirect:
 
 class _SingleBSR:
     """A prolongator P held in single precision: its values are rounded to
-    float32 before the Galerkin product (_smoothed_aggregation, _galerkin
-    sums in double), so the
-    coarse operator is exactly P^T A P of the P applied -- the hierarchy
-    stays a symmetric positive definite preconditioner -- and P x is summed
-    in double (_bsr_matvec).  Half the memory of the prolongators: 1.8 GB
+    float32 before the Galerkin product (_smoothed_aggregation; _galerkin
+    sums in double), so the coarse operator is exactly P^T A P of the P
+    applied -- the hierarchy stays a symmetric positive definite
+    preconditioner -- and P x is summed in double (_bsr_matvec).  Half the memory of the prolongators: 1.8 GB
     of the 1M-triangle leaf's hierarchy (P of the finest level 2.8 GB in
     double); the rounding of P (relative 6e-8) is far below what it
     approximates (the smoothed near-null vectors)."""
