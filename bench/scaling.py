@@ -121,7 +121,8 @@ try:
     h, converged, error = res.history, True, None
 except SolveError as exc:
     h, converged, error = exc.history, False, str(exc)
-    shell = shell or leaf(rings)
+    if shell is None:                     # solve_nested failed: time the assembly on a fresh leaf
+        shell = leaf(rings)
 row["wall_s"] = time.perf_counter() - t
 x = shell.free_state()
 times = []

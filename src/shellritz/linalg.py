@@ -84,16 +84,17 @@ AMG_MAX_LEVELS = 3
 # square of their number (18 -> 12: the first coarse operator 2.25 times
 # smaller), at more CG iterations (100k leaf: 59 instead of 38 to 1e-8).
 # The hierarchy beyond the finest operator A_0 takes about
-# (AMG_P_SHARE k + AMG_COARSE_SHARE k^2) / 18^2 times A_0's bytes for k
-# vectors, measured on the 1M-triangle leaf (2026-12-04, k = 18: P_0 in
-# single precision 0.33 A_0, the coarse operators, P_1 and the coarsest
-# factor 1.62 A_0); the Newton iteration needs room for AMG_NEWTON_HESSIANS
+# AMG_P_SHARE (k/18) + AMG_COARSE_SHARE (k/18)^2 times A_0's bytes for k
+# vectors (P_0 grows with k, the coarse levels with k^2), the shares
+# measured on the 1M-triangle leaf with 18 (2026-12-04: P_0 in single
+# precision 0.33 A_0; the coarse operators, P_1 and the coarsest factor
+# 1.62 A_0); the Newton iteration needs room for AMG_NEWTON_HESSIANS
 # Hessians' values besides (the 1M leaf ran out of memory at its first
 # Newton step with 18 vectors: resident 12.4 GB after A_0, killed at 24.9
 # GB, at least 4.3 GB = 2 Hessians' values beyond the hierarchy; one more
 # for margin).
 AMG_LEAN_NEAR_NULL = 12
-AMG_P_SHARE = 0.33 * 18
+AMG_P_SHARE = 0.33
 AMG_COARSE_SHARE = 1.62
 AMG_NEWTON_HESSIANS = 3
 # strength of connection: a coupling between two nodes whose block is below
@@ -894,7 +895,7 @@ def _hierarchy_need(A, K, k):
     """Bytes a hierarchy with k near-null vectors on the finest operator A
     needs beyond A, with room for the Newton iteration (AMG_LEAN_NEAR_NULL)."""
     a = A.data.nbytes + A.indices.nbytes
-    return a * (AMG_P_SHARE * k + AMG_COARSE_SHARE * k * k) / 18**2 + AMG_NEWTON_HESSIANS * K.data.nbytes
+    return a * (AMG_P_SHARE * k / 18 + AMG_COARSE_SHARE * (k / 18) ** 2) + AMG_NEWTON_HESSIANS * K.data.nbytes
 
 
 def _available_memory():
