@@ -83,19 +83,21 @@ AMG_MAX_LEVELS = 3
 # and bending modes) are used: the levels below the finest scale with the
 # square of their number (18 -> 12: the first coarse operator 2.25 times
 # smaller), at more CG iterations (100k leaf: 59 instead of 38 to 1e-8).
-# The hierarchy beyond the finest operator A_0 takes about
-# AMG_P_SHARE (k/18) + AMG_COARSE_SHARE (k/18)^2 times A_0's bytes for k
-# vectors (P_0 grows with k, the coarse levels with k^2), the shares
+# The hierarchy beyond the finest operator A_0 (as embedded, in double) takes
+# about AMG_P_SHARE (k/18) + AMG_COARSE_SHARE (k/18)^2 - 1/2 times A_0's
+# bytes for k vectors (P_0 grows with k, the coarse levels with k^2; A_0
+# is rounded to single precision: half of it comes back), the shares
 # measured on the 1M-triangle leaf with 18 (2026-12-04: P_0 in single
-# precision 0.33 A_0; the coarse operators, P_1 and the coarsest factor
-# 1.62 A_0); the Newton iteration needs room for AMG_NEWTON_HESSIANS
-# Hessians' values besides (the 1M leaf ran out of memory at its first
-# Newton step with 18 vectors: resident 12.4 GB after A_0, killed at 24.9
-# GB, at least 4.3 GB = 2 Hessians' values beyond the hierarchy; one more
-# for margin).
+# precision 0.33 A_0; the coarse operators -- A_1 0.88 in double, so 0.44 in single,
+# P_1 0.10, A_2 0.14 -- and the coarsest factor 0.50: 1.18 A_0); the
+# Newton iteration needs room for AMG_NEWTON_HESSIANS Hessians' values
+# besides (the 1M leaf ran out of memory at its first Newton step with 18
+# vectors and the levels in double: resident 12.4 GB after A_0, killed at
+# 24.9 GB, at least 4.3 GB = 2 Hessians' values beyond the hierarchy; one
+# more for margin).
 AMG_LEAN_NEAR_NULL = 12
 AMG_P_SHARE = 0.33
-AMG_COARSE_SHARE = 1.62
+AMG_COARSE_SHARE = 1.18
 AMG_NEWTON_HESSIANS = 3
 # strength of connection: a coupling between two nodes whose block is below
 # this fraction of their diagonal blocks' (Frobenius norms) is weak and not
@@ -110,8 +112,12 @@ AMG_NEWTON_HESSIANS = 3
 # in 1,000 iterations (50k, h = 0.02: too many nodes left out of every
 # aggregate); 0.05 keeps away from that edge.
 AMG_STRENGTH_THETA = 0.05
-# pre- and post-smoother of every level
-AMG_SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
+# pre- and post-smoother of every level but the coarsest: this many
+# symmetric block Gauss-Seidel sweeps (forward, then backward; pyamg's
+# "block_gauss_seidel", sweep "symmetric", iterations 2) with the level's
+# nodal blocks, on its operator held in single precision (_SingleBSR,
+# _block_gauss_seidel)
+AMG_SMOOTHER_SWEEPS = 2
 # ... except that a Hessian of at most this many nodal blocks (27,000 DOFs
 # of the triangle engine: sparse, cheap to factorize) is one level: the
 # coarse solver's factor of the Hessian the hierarchy was built on, kept as
@@ -621,18 +627,19 @@ def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coa
     Jacobi prolongation smoothing with 'local' weighting ``omega``, block
     Gauss-Seidel smoothers, coarsening while a level has more than
     ``max_coarse`` blocks and there are fewer than ``max_levels`` levels),
-    built from pyamg's parts, with the two steps that hold memory done
+    built from pyamg's parts, with the steps that hold memory done
     without pyamg's temporaries: the prolongation smoothing scales and
     corrects A T in place (pyamg copies A twice for |A| and D^-1 A), and
     the Galerkin product P^T (A P) is summed into its block pattern
     (_galerkin) with the restriction as a view of P (pyamg: a copy of P,
-    R A, R A P); P is kept in single precision (_SingleBSR), rounded before
-    the Galerkin product (its double-precision version is gone before the
-    coarse operator is allocated).  The same hierarchy up to that rounding
-    (tested)."""
+    R A, R A P); P and the operators of all levels but the coarsest are
+    kept in single precision (_SingleBSR), rounded before the Galerkin
+    product (their double-precision versions are gone before the coarse
+    operator is allocated), and smoothed by our block Gauss-Seidel on them
+    (_smooth_in_single_precision; A is rounded in place).  The same
+    hierarchy up to that rounding (tested)."""
     from pyamg.aggregation import fit_candidates, standard_aggregation
     from pyamg.multilevel import MultilevelSolver
-    from pyamg.relaxation.smoothing import change_smoothers
     from pyamg.strength import symmetric_strength_of_connection
     levels = []
     while True:
@@ -646,10 +653,58 @@ def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coa
         del C
         level.P = _SingleBSR(_smoothed_prolongator(A, T, omega))
         level.R = _TransposeOf(level.P)
-        A = _galerkin(A, level.P)
-    ml = MultilevelSolver(levels, coarse_solver=coarse_solver)
-    change_smoothers(ml, AMG_SMOOTHER, AMG_SMOOTHER)
-    return ml
+        _smooth_in_single_precision(level, A)
+        A = _galerkin(level.A, level.P)
+    return MultilevelSolver(levels, coarse_solver=coarse_solver)
+
+
+def _smooth_in_single_precision(level, A):
+    """The level's operator A (BSR) rounded to single precision in place
+    (_SingleBSR) and its pre- and post-smoother: AMG_SMOOTHER_SWEEPS symmetric block
+    Gauss-Seidel sweeps with the pseudo-inverses of its diagonal blocks
+    (pyamg's get_block_diag).  The symmetric sweeps keep the W-cycle a
+    symmetric positive definite preconditioner whatever the rounding (their
+    M + M^T - A is the block diagonal); the rounding (relative 6e-8 per
+    entry) is far below the hierarchy's own approximation, and the levels
+    but the coarsest hold half the memory (1M-triangle leaf: A_0 4.2 and
+    A_1 3.7 GB in double)."""
+    from pyamg.util.utils import get_block_diag
+    dinv = get_block_diag(A, blocksize=A.blocksize[0], inv_flag=True)
+    level.A = single = _SingleBSR(A)
+
+    def smoother(_, x, b):
+        _block_gauss_seidel(single.indptr, single.indices, single.data, dinv, x, b, AMG_SMOOTHER_SWEEPS)
+    level.presmoother = level.postsmoother = smoother
+
+
+@nb.njit(cache=True)
+def _block_gauss_seidel(indptr, indices, data, dinv, x, b, sweeps):
+    """``sweeps`` symmetric block Gauss-Seidel sweeps on A x = b, x in place
+    (A the BSR (indptr, indices, data (blocks, m, m)) in any precision, dinv
+    the inverses of its diagonal blocks; summed in double): block row i of
+    each sweep, forward then backward, sets x_i = dinv_i (b_i - sum over
+    j != i of A_ij x_j) (pyamg's block_gauss_seidel)."""
+    m = data.shape[1]
+    n = len(indptr) - 1
+    r = np.empty(m)
+    for s in range(2 * sweeps):
+        for step in range(n):
+            i = step if s % 2 == 0 else n - 1 - step
+            for a in range(m):
+                r[a] = b[i * m + a]
+            for k in range(indptr[i], indptr[i + 1]):
+                j = indices[k]
+                if j != i:
+                    for a in range(m):
+                        acc = 0.0
+                        for c in range(m):
+                            acc += data[k, a, c] * x[j * m + c]
+                        r[a] -= acc
+            for a in range(m):
+                acc = 0.0
+                for c in range(m):
+                    acc += dinv[i, a, c] * r[c]
+                x[i * m + a] = acc
 
 
 def _smoothed_prolongator(A, T, omega):
@@ -686,7 +741,7 @@ def _scale_rows_add(a_ptr, a_data, omega, ptr, idx, data, t_ptr, t_idx, t_data):
 
 
 def _galerkin(A, P):
-    """P^T A P (BSR; P a _SingleBSR), summed row by row of P^T into its
+    """P^T A P (A and P _SingleBSR, indices sorted), summed row by row of P^T into its
     block pattern (the rows in chunks on the assembly's threads,
     kernels/parallel.py):
     for each coarse row I, the products P_iI^T A_ij P_jJ over the fine
@@ -694,7 +749,6 @@ def _galerkin(A, P):
     no transposed copy of P and no A P (pyamg's R A and R A P held 1.2 GB
     beyond the result at 199k triangles, A P alone would be about twice P)."""
     n_coarse = P.shape[1] // P.blocksize[1]
-    A.sort_indices()
     t_ptr, t_row, t_blk, ptr, idx = _galerkin_pattern(A.indptr, A.indices, P.indptr, P.indices, n_coarse)
     data = np.zeros((len(idx), P.blocksize[1], P.blocksize[1]))
     run_chunks(_galerkin_rows, 0, n_coarse, t_ptr, t_row, t_blk, ptr, idx, A.indptr, A.indices, A.data,
@@ -766,12 +820,12 @@ def _galerkin_rows(lo, hi, t_ptr, t_row, t_blk, ptr, idx, a_ptr, a_idx, a_data, 
             i, kt = t_row[q], t_blk[q]
             for ka in range(a_ptr[i], a_ptr[i + 1]):
                 # w = P_iI^T A_ij, then w P_jJ into block (I, J); loops,
-                # not @: P is single, A double precision
+                # not @: P and A in single precision, products in double
                 for c in range(bc):
                     for q2 in range(br):
                         acc = 0.0
                         for r in range(br):
-                            acc += p_data[kt, r, c] * a_data[ka, r, q2]
+                            acc += np.float64(p_data[kt, r, c]) * a_data[ka, r, q2]
                         w[c, q2] = acc
                 j = a_idx[ka]
                 for kp in range(p_ptr[j], p_ptr[j + 1]):
@@ -822,20 +876,24 @@ class _CoarseDirect:
 
 
 class _SingleBSR:
-    """A prolongator P held in single precision: its values are rounded to
-    float32 before the Galerkin product (_smoothed_aggregation; _galerkin
-    sums in double), so the coarse operator is exactly P^T A P of the P
+    """A BSR operator of the hierarchy held in single precision: a
+    prolongator P, or the operator A of a level but the coarsest
+    (_smooth_in_single_precision).  The values are rounded to float32
+    before the Galerkin product (_smoothed_aggregation; _galerkin sums in
+    double), so each coarse operator is exactly P^T A P of the P and A
     applied -- the hierarchy stays a symmetric positive definite
-    preconditioner -- and P x is summed in double (_bsr_matvec).  Half the memory of the prolongators: 1.8 GB
-    of the 1M-triangle leaf's hierarchy (P of the finest level 2.8 GB in
-    double); the rounding of P (relative 6e-8) is far below what it
-    approximates (the smoothed near-null vectors)."""
+    preconditioner -- and products are summed in double (_bsr_matvec).
+    Half the memory: P_0 of the 1M-triangle leaf 2.8 GB in double, A_0 4.2;
+    the rounding (relative 6e-8) is far below what P approximates (the
+    smoothed near-null vectors) and what the smoother does."""
 
-    def __init__(self, P):
-        P.sort_indices()
-        self.indptr, self.indices = P.indptr, P.indices
-        self.data = P.data.astype(np.float32)
-        self.shape, self.blocksize = P.shape, P.blocksize
+    def __init__(self, M):
+        """M's values rounded in place (M keeps the float32 array: no
+        reference to M elsewhere holds on to the double one)."""
+        M.sort_indices()
+        M.data = M.data.astype(np.float32)
+        self.indptr, self.indices, self.data = M.indptr, M.indices, M.data
+        self.shape, self.blocksize = M.shape, M.blocksize
         self.dtype = np.dtype(np.float64)
 
     def __matmul__(self, x):
@@ -843,7 +901,7 @@ class _SingleBSR:
                            False)
 
     def tobsr(self):
-        """P as a SciPy BSR matrix in double (tests, inspection)."""
+        """The operator as a SciPy BSR matrix in double (tests, inspection)."""
         return sp.bsr_matrix((self.data.astype(np.float64), self.indices, self.indptr), shape=self.shape)
 
 
@@ -895,7 +953,8 @@ def _hierarchy_need(A, K, k):
     """Bytes a hierarchy with k near-null vectors on the finest operator A
     needs beyond A, with room for the Newton iteration (AMG_LEAN_NEAR_NULL)."""
     a = A.data.nbytes + A.indices.nbytes
-    return a * (AMG_P_SHARE * k / 18 + AMG_COARSE_SHARE * (k / 18) ** 2) + AMG_NEWTON_HESSIANS * K.data.nbytes
+    return (a * (AMG_P_SHARE * k / 18 + AMG_COARSE_SHARE * (k / 18) ** 2 - 0.5)
+            + AMG_NEWTON_HESSIANS * K.data.nbytes)
 
 
 def _available_memory():
