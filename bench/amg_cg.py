@@ -16,7 +16,7 @@ def amg_cg_iterations(K, layout, finest=None, options=None):
     ``finest`` the hierarchy's finest level (residuals and smoother) is that
     matrix.  Returns dict(its, reason, setup_s, cg_s, levels, coarsest_blocks)
     (pyamg's count of the coarsest level: nodal blocks or aggregates)."""
-    from shellritz.linalg import (_smooth_in_single_precision, free_rigid_modes, lower_matvec,
+    from shellritz.linalg import (_smooth, free_rigid_modes, lower_matvec,
                                   make_linear_solver, projector, steihaug_cg)
     finest = K if finest is None else finest
     project = projector(free_rigid_modes(layout))
@@ -25,7 +25,7 @@ def amg_cg_iterations(K, layout, finest=None, options=None):
     t = time.perf_counter()
     amg.factorize(K)
     if finest is not K:
-        _smooth_in_single_precision(amg._ml.levels[0], amg._embed(finest))
+        _smooth(amg._ml.levels[0], amg._embed(finest), single=True)
     setup = time.perf_counter() - t
     b = np.random.default_rng(0).standard_normal(K.shape[0])
     b = project(b) if project is not None else b

@@ -88,8 +88,8 @@ AMG_MAX_LEVELS = 3
 # bytes for k vectors (P_0 grows with k, the coarse levels with k^2; A_0
 # is rounded to single precision: half of it comes back), the shares
 # measured on the 1M-triangle leaf with 18 (2026-12-04: P_0 in single
-# precision 0.33 A_0; the coarse operators -- A_1 0.88 in double, so 0.44 in single,
-# P_1 0.10, A_2 0.14 -- and the coarsest factor 0.50: 1.18 A_0); the
+# precision 0.33 A_0; the coarse operators -- A_1 0.88, P_1 0.10, A_2
+# 0.14 -- and the coarsest factor 0.50: 1.62 A_0); the
 # Newton iteration needs room for AMG_NEWTON_HESSIANS Hessians' values
 # besides (the 1M leaf ran out of memory at its first Newton step with 18
 # vectors and the levels in double: resident 12.4 GB after A_0, killed at
@@ -97,7 +97,7 @@ AMG_MAX_LEVELS = 3
 # more for margin).
 AMG_LEAN_NEAR_NULL = 12
 AMG_P_SHARE = 0.33
-AMG_COARSE_SHARE = 1.18
+AMG_COARSE_SHARE = 1.62
 AMG_NEWTON_HESSIANS = 3
 # strength of connection: a coupling between two nodes whose block is below
 # this fraction of their diagonal blocks' (Frobenius norms) is weak and not
@@ -632,12 +632,11 @@ def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coa
     corrects A T in place (pyamg copies A twice for |A| and D^-1 A), and
     the Galerkin product P^T (A P) is summed into its block pattern
     (_galerkin) with the restriction as a view of P (pyamg: a copy of P,
-    R A, R A P); P and the operators of all levels but the coarsest are
-    kept in single precision (_SingleBSR), rounded before the Galerkin
-    product (their double-precision versions are gone before the coarse
-    operator is allocated), and smoothed by our block Gauss-Seidel on them
-    (_smooth_in_single_precision; A is rounded in place).  The same
-    hierarchy up to that rounding (tested)."""
+    R A, R A P); P is kept in single precision (_SingleBSR), rounded
+    before the Galerkin product (its double-precision version is gone
+    before the coarse operator is allocated), and so is the finest
+    operator, after it (in place); the smoothers are our block Gauss-Seidel
+    (_smooth).  The same hierarchy up to that rounding (tested)."""
     from pyamg.aggregation import fit_candidates, standard_aggregation
     from pyamg.multilevel import MultilevelSolver
     from pyamg.strength import symmetric_strength_of_connection
@@ -653,27 +652,34 @@ def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coa
         del C
         level.P = _SingleBSR(_smoothed_prolongator(A, T, omega))
         level.R = _TransposeOf(level.P)
-        _smooth_in_single_precision(level, A)
-        A = _galerkin(level.A, level.P)
+        coarse = _galerkin(A, level.P)
+        _smooth(level, A, single=len(levels) == 1)
+        A = coarse
     return MultilevelSolver(levels, coarse_solver=coarse_solver)
 
 
-def _smooth_in_single_precision(level, A):
-    """The level's operator A (BSR) rounded to single precision in place
-    (_SingleBSR) and its pre- and post-smoother: AMG_SMOOTHER_SWEEPS symmetric block
-    Gauss-Seidel sweeps with the pseudo-inverses of its diagonal blocks
-    (pyamg's get_block_diag).  The symmetric sweeps keep the W-cycle a
-    symmetric positive definite preconditioner whatever the rounding (their
-    M + M^T - A is the block diagonal); the rounding (relative 6e-8 per
-    entry) is far below the hierarchy's own approximation, and the levels
-    but the coarsest hold half the memory (1M-triangle leaf: A_0 4.2 and
-    A_1 3.7 GB in double)."""
+def _smooth(level, A, single):
+    """The level's pre- and post-smoother: AMG_SMOOTHER_SWEEPS symmetric
+    block Gauss-Seidel sweeps (_block_gauss_seidel) with the pseudo-inverses
+    of the diagonal blocks of A (BSR; pyamg's get_block_diag); ``single``:
+    A is rounded to single precision in place (_SingleBSR), after the
+    Galerkin product that made the next level from it.
+    Only the finest level is rounded (1M-triangle leaf: A_0 4.2 GB in
+    double, 2.1 in single): a W-cycle visits it once, and the preconditioner
+    stays symmetric positive definite whatever its rounding (the symmetric
+    sweeps' M + M^T - A is the block diagonal, the coarse correction a
+    Galerkin product of the double A).  The coarser levels, visited twice
+    per cycle, must hold the operator their own coarse levels were made
+    from: rounding moves the lowest eigenvalues (a free plate's rigid
+    modes: 1e-5 instead of 1e-14 of |A|), which the coarsest level's
+    regularized factor then amplifies (the W-cycle indefinite; also when
+    the coarse operators were made from the rounded ones: 199k leaf)."""
     from pyamg.util.utils import get_block_diag
     dinv = get_block_diag(A, blocksize=A.blocksize[0], inv_flag=True)
-    level.A = single = _SingleBSR(A)
+    level.A = op = _SingleBSR(A) if single else A
 
     def smoother(_, x, b):
-        _block_gauss_seidel(single.indptr, single.indices, single.data, dinv, x, b, AMG_SMOOTHER_SWEEPS)
+        _block_gauss_seidel(op.indptr, op.indices, op.data, dinv, x, b, AMG_SMOOTHER_SWEEPS)
     level.presmoother = level.postsmoother = smoother
 
 
@@ -741,7 +747,7 @@ def _scale_rows_add(a_ptr, a_data, omega, ptr, idx, data, t_ptr, t_idx, t_data):
 
 
 def _galerkin(A, P):
-    """P^T A P (A and P _SingleBSR, indices sorted), summed row by row of P^T into its
+    """P^T A P (A BSR, P a _SingleBSR), summed row by row of P^T into its
     block pattern (the rows in chunks on the assembly's threads,
     kernels/parallel.py):
     for each coarse row I, the products P_iI^T A_ij P_jJ over the fine
@@ -749,6 +755,7 @@ def _galerkin(A, P):
     no transposed copy of P and no A P (pyamg's R A and R A P held 1.2 GB
     beyond the result at 199k triangles, A P alone would be about twice P)."""
     n_coarse = P.shape[1] // P.blocksize[1]
+    A.sort_indices()
     t_ptr, t_row, t_blk, ptr, idx = _galerkin_pattern(A.indptr, A.indices, P.indptr, P.indices, n_coarse)
     data = np.zeros((len(idx), P.blocksize[1], P.blocksize[1]))
     run_chunks(_galerkin_rows, 0, n_coarse, t_ptr, t_row, t_blk, ptr, idx, A.indptr, A.indices, A.data,
@@ -820,12 +827,12 @@ def _galerkin_rows(lo, hi, t_ptr, t_row, t_blk, ptr, idx, a_ptr, a_idx, a_data, 
             i, kt = t_row[q], t_blk[q]
             for ka in range(a_ptr[i], a_ptr[i + 1]):
                 # w = P_iI^T A_ij, then w P_jJ into block (I, J); loops,
-                # not @: P and A in single precision, products in double
+                # not @: P is single, A double precision
                 for c in range(bc):
                     for q2 in range(br):
                         acc = 0.0
                         for r in range(br):
-                            acc += np.float64(p_data[kt, r, c]) * a_data[ka, r, q2]
+                            acc += p_data[kt, r, c] * a_data[ka, r, q2]
                         w[c, q2] = acc
                 j = a_idx[ka]
                 for kp in range(p_ptr[j], p_ptr[j + 1]):
@@ -877,13 +884,10 @@ class _CoarseDirect:
 
 class _SingleBSR:
     """A BSR operator of the hierarchy held in single precision: a
-    prolongator P, or the operator A of a level but the coarsest
-    (_smooth_in_single_precision).  The values are rounded to float32
-    before the Galerkin product (_smoothed_aggregation; _galerkin sums in
-    double), so each coarse operator is exactly P^T A P of the P and A
-    applied -- the hierarchy stays a symmetric positive definite
-    preconditioner -- and products are summed in double (_bsr_matvec).
-    Half the memory: P_0 of the 1M-triangle leaf 2.8 GB in double, A_0 4.2;
+    prolongator P, or the finest operator A (_smooth); products are summed
+    in double (_bsr_matvec).  P is rounded before the Galerkin product
+    (_galerkin sums in double), so each coarse operator is exactly P^T A P
+    of the P applied, A after it (_smoothed_aggregation).  Half the memory: P_0 of the 1M-triangle leaf 2.8 GB in double, A_0 4.2;
     the rounding (relative 6e-8) is far below what P approximates (the
     smoothed near-null vectors) and what the smoother does."""
 
