@@ -34,7 +34,9 @@ also amg_cg_1e8_its: CG iterations to a relative residual of 1e-8 on the
 Hessian at the solution with a hierarchy built on it, the measure of the
 preconditioner apart from the Newton forcing terms, with amg_levels,
 amg_setup_s, amg_cg_1e8_s, amg_strength_theta: linalg.AMG_STRENGTH_THETA,
-absent in rows measured before it existed, i.e. with 0) and bench/results/scaling.png.
+absent in rows measured before it existed, i.e. with 0; post_error: the
+process failed after the solve and its assembly timing, whose row is kept
+without the measurements after them) and bench/results/scaling.png.
 
 Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200] [--redo]
       python bench/scaling.py --quick        (rings 8 and 16)
@@ -139,6 +141,10 @@ row.update(dofs=int(len(x)), assembly_s=float(np.median(times)), converged=conve
            setup_s=float(sum(i.setup_s for i in its)), linear_solve_s=float(sum(i.solve_s for i in its)),
            energy=float(E), stable=h.stable, notes=h.notes[:5], linear_used=h.linear,
            peak_mem_gb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20)
+row["solve_in_assemblies"] = row["wall_s"] / row["assembly_s"]
+from machine import machine_info
+row["machine"] = machine_info()
+print("SOLVED " + json.dumps(row), flush=True)     # kept if what follows fails (1M: 20 min more)
 if solver.startswith("amg") and converged:
     # the preconditioner apart from the Newton forcing terms (bench/amg_cg.py)
     from amg_cg import amg_cg_iterations
@@ -153,9 +159,6 @@ ref = leaf(rings)
 ref._setup()
 ref.set_parameter(1.0)
 row["grad_rel"] = float(np.linalg.norm(g) / np.linalg.norm(ref.evaluate(ref.free_state(), 1)[1]))
-row["solve_in_assemblies"] = row["wall_s"] / row["assembly_s"]
-from machine import machine_info
-row["machine"] = machine_info()
 print("ROW " + json.dumps(row))
 """
 
@@ -170,6 +173,15 @@ def nested_levels(rings):
     return levels
 
 
+def solved_row(stdout, why):
+    """The row the child printed after its solve and assembly timing (None if
+    it did not get there), with why it did not finish as post_error."""
+    for line in stdout.splitlines():
+        if line.startswith("SOLVED "):
+            return dict(json.loads(line[7:]), post_error=why)
+    return None
+
+
 def run(rings, solver, time_limit):
     env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
                MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
@@ -180,12 +192,17 @@ def run(rings, solver, time_limit):
         p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL),
                             ",".join(map(str, coarser))], env=env,
                            capture_output=True, text=True, timeout=time_limit)
-    except subprocess.TimeoutExpired:
-        return {"rings": rings, "solver": solver, "converged": False,
-                "error": f"time limit {time_limit} s", "wall_s": time.perf_counter() - t}
+    except subprocess.TimeoutExpired as exc:
+        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+        return solved_row(out, f"time limit {time_limit} s") or {
+            "rings": rings, "solver": solver, "converged": False,
+            "error": f"time limit {time_limit} s", "wall_s": time.perf_counter() - t}
     for line in p.stdout.splitlines():
         if line.startswith("ROW "):
             return json.loads(line[4:])
+    row = solved_row(p.stdout, f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:] or ''}")
+    if row:
+        return row
     row = {"rings": rings, "solver": solver, "converged": False, "wall_s": time.perf_counter() - t}
     if p.returncode < 0:
         # killed by a signal: SIGKILL from outside this script is the kernel's
