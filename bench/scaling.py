@@ -36,7 +36,8 @@ preconditioner apart from the Newton forcing terms, with amg_levels,
 amg_setup_s, amg_cg_1e8_s, amg_strength_theta: linalg.AMG_STRENGTH_THETA,
 absent in rows measured before it existed, i.e. with 0; post_error: the
 process failed after the solve and its assembly timing, whose row is kept
-without the measurements after them) and bench/results/scaling.png.
+without the measurements after them), bench/results/scaling.png and the
+child processes' output (their Newton iterations) in bench/results/logs/.
 
 Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200] [--redo]
       python bench/scaling.py --quick        (rings 8 and 16)
@@ -107,7 +108,7 @@ try:
         from shellritz.scenefile import load_scene
         scene = load_scene(files("shellritz.meshes") / "leaf.toml")
         mesh, shell = shell.mesh, None       # solve_nested builds the scene on the mesh: one Shell
-        res = solve_nested(lambda mesh: scene.build(Surface(mesh))[0], mesh, verbose=False,
+        res = solve_nested(lambda mesh: scene.build(Surface(mesh))[0], mesh, verbose=True,
                            linear=linear, rtol=rtol)
         shell = res.shell
         row["nested_levels"] = res.history.nested
@@ -119,7 +120,7 @@ try:
                                          newton_its=len(start.history.iterations),
                                          factorizations=start.history.factorizations))
     if not solver.endswith("-coarsened"):
-        res = shell.solve(verbose=False, linear=linear, rtol=rtol, start=start)
+        res = shell.solve(verbose=True, linear=linear, rtol=rtol, start=start)
     h, converged, error = res.history, True, None
 except SolveError as exc:
     h, converged, error = exc.history, False, str(exc)
@@ -173,6 +174,14 @@ def nested_levels(rings):
     return levels
 
 
+def keep_log(rings, solver, text):
+    """The child's output (the finest solve's Newton iterations, verbose) in
+    bench/results/logs/: what a run that failed or timed out got through."""
+    path = RESULTS / "logs" / f"scaling_{rings}_{solver}.log"
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(text)
+
+
 def solved_row(stdout, why):
     """The row the child printed after its solve and assembly timing (None if
     it did not get there), with why it did not finish as post_error."""
@@ -194,9 +203,11 @@ def run(rings, solver, time_limit):
                            capture_output=True, text=True, timeout=time_limit)
     except subprocess.TimeoutExpired as exc:
         out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+        keep_log(rings, solver, out)
         return solved_row(out, f"time limit {time_limit} s") or {
             "rings": rings, "solver": solver, "converged": False,
             "error": f"time limit {time_limit} s", "wall_s": time.perf_counter() - t}
+    keep_log(rings, solver, p.stdout + p.stderr)
     for line in p.stdout.splitlines():
         if line.startswith("ROW "):
             return json.loads(line[4:])
