@@ -640,7 +640,7 @@ def test_amg_preconditioner_of_a_free_body_is_positive_definite(monkeypatch):
 
 
 def test_block_gauss_seidel_is_pyamgs():
-    """The smoother on the single-precision levels (_block_gauss_seidel) does
+    """The smoother of every level but the coarsest (_block_gauss_seidel) does
     pyamg's symmetric block Gauss-Seidel sweeps: on a double-precision
     operator the same iterate to rounding (observed 1e-16 relative)."""
     import shellritz.linalg as linalg

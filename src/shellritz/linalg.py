@@ -115,8 +115,8 @@ AMG_STRENGTH_THETA = 0.05
 # pre- and post-smoother of every level but the coarsest: this many
 # symmetric block Gauss-Seidel sweeps (forward, then backward; pyamg's
 # "block_gauss_seidel", sweep "symmetric", iterations 2) with the level's
-# nodal blocks, on its operator held in single precision (_SingleBSR,
-# _block_gauss_seidel)
+# nodal blocks (_smooth, _block_gauss_seidel; the finest level's operator
+# in single precision)
 AMG_SMOOTHER_SWEEPS = 2
 # ... except that a Hessian of at most this many nodal blocks (27,000 DOFs
 # of the triangle engine: sparse, cheap to factorize) is one level: the
@@ -887,9 +887,10 @@ class _SingleBSR:
     prolongator P, or the finest operator A (_smooth); products are summed
     in double (_bsr_matvec).  P is rounded before the Galerkin product
     (_galerkin sums in double), so each coarse operator is exactly P^T A P
-    of the P applied, A after it (_smoothed_aggregation).  Half the memory: P_0 of the 1M-triangle leaf 2.8 GB in double, A_0 4.2;
-    the rounding (relative 6e-8) is far below what P approximates (the
-    smoothed near-null vectors) and what the smoother does."""
+    of the P applied, A after it (_smoothed_aggregation).  Half the
+    memory: P_0 of the 1M-triangle leaf 2.8 GB in double, A_0 4.2; the
+    rounding (relative 6e-8) is far below what P approximates (the smoothed
+    near-null vectors) and what the smoother does."""
 
     def __init__(self, M):
         """M's values rounded in place (M keeps the float32 array: no
