@@ -39,7 +39,12 @@ process failed after the solve and its assembly timing, whose row is kept
 without the measurements after them), bench/results/scaling.png and the
 child processes' output (their Newton iterations) in bench/results/logs/.
 
-Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200] [--redo]
+--thickness h runs the leaf thinner than its 0.02 (rows carry thickness;
+rows without it are at 0.02): elements of the 1M-triangle disc are 0.0027
+long, h = 0.005 keeps them about as long as the thickness, where the shell
+model needs them (docs/validity.md).
+
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200] [--thickness 0.02] [--redo]
       python bench/scaling.py --quick        (rings 8 and 16)
 """
 
@@ -81,6 +86,9 @@ LIMITS = {"superlu": 60_000, "pardiso": 250_000, "amg": None, "pardiso-nested": 
 # choose their solver by size, as solve_nested does)
 NESTED_COARSEST = 16
 TIME_LIMIT_S = 1200
+# the leaf's thickness (meshes/leaf.toml); --thickness runs the scene thinner
+# (rows carry "thickness"; rows without it were measured at this one)
+LEAF_THICKNESS = 0.02
 
 CHILD = r"""
 import json, resource, sys, time
@@ -90,13 +98,15 @@ from shellritz.scenes import leaf
 from shellritz import SolveError
 rings, solver, rtol = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
 coarser = [int(k) for k in sys.argv[4].split(",") if k]
+thickness = float(sys.argv[5])
+leaf_h = lambda k: leaf(k, thickness=thickness)
 linear = solver.split("-")[0]
 kernels_s, compiled = prepare_kernels()
 t = time.perf_counter()
 leaf(4).solve(verbose=False, linear=linear)
 warm_s = time.perf_counter() - t
-shell = leaf(rings)
-row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solver,
+shell = leaf_h(rings)
+row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solver, thickness=thickness,
            kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s, nested_levels=[])
 t = time.perf_counter()
 try:
@@ -108,13 +118,13 @@ try:
         from shellritz.scenefile import load_scene
         scene = load_scene(files("shellritz.meshes") / "leaf.toml")
         mesh, shell = shell.mesh, None       # solve_nested builds the scene on the mesh: one Shell
-        res = solve_nested(lambda mesh: scene.build(Surface(mesh))[0], mesh, verbose=True,
+        res = solve_nested(lambda mesh: scene.build(Surface(mesh), thickness=thickness)[0], mesh, verbose=True,
                            linear=linear, rtol=rtol)
         shell = res.shell
         row["nested_levels"] = res.history.nested
     for k in coarser:        # nested iteration: each level starts from the previous one
         tk = time.perf_counter()
-        start = leaf(k).solve(verbose=False, linear="auto", rtol=rtol, start=start)
+        start = leaf_h(k).solve(verbose=False, linear="auto", rtol=rtol, start=start)
         row["nested_levels"].append(dict(rings=k, n_triangles=int(len(start.shell.mesh.triangles)),
                                          wall_s=time.perf_counter() - tk,
                                          newton_its=len(start.history.iterations),
@@ -125,7 +135,7 @@ try:
 except SolveError as exc:
     h, converged, error = exc.history, False, str(exc)
     if shell is None:                     # solve_nested failed: time the assembly on a fresh leaf
-        shell = leaf(rings)
+        shell = leaf_h(rings)
 row["wall_s"] = time.perf_counter() - t
 x = shell.free_state()
 times = []
@@ -156,7 +166,7 @@ if solver.startswith("amg") and converged:
                amg_cg_1e8_reason=m["reason"], amg_cg_1e8_s=m["cg_s"], amg_strength_theta=AMG_STRENGTH_THETA)
 # the final gradient relative to that of the reference (flat) state at t = 1,
 # the scale rtol refers to for every method (solve(start=) included)
-ref = leaf(rings)
+ref = leaf_h(rings)
 ref._setup()
 ref.set_parameter(1.0)
 row["grad_rel"] = float(np.linalg.norm(g) / np.linalg.norm(ref.evaluate(ref.free_state(), 1)[1]))
@@ -174,10 +184,15 @@ def nested_levels(rings):
     return levels
 
 
-def keep_log(rings, solver, text):
+def thickness_of(row):
+    return row.get("thickness", LEAF_THICKNESS)
+
+
+def keep_log(rings, solver, thickness, text):
     """The child's output (the finest solve's Newton iterations, verbose) in
     bench/results/logs/: what a run that failed or timed out got through."""
-    path = RESULTS / "logs" / f"scaling_{rings}_{solver}.log"
+    h = "" if thickness == LEAF_THICKNESS else f"_h{thickness:g}"
+    path = RESULTS / "logs" / f"scaling_{rings}_{solver}{h}.log"
     path.parent.mkdir(exist_ok=True)
     path.write_text(text)
 
@@ -191,7 +206,7 @@ def solved_row(stdout, why):
     return None
 
 
-def run(rings, solver, time_limit):
+def run(rings, solver, time_limit, thickness):
     env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
                MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
     coarser = nested_levels(rings) if solver.endswith("-nested") else []
@@ -199,22 +214,23 @@ def run(rings, solver, time_limit):
     peak_before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20
     try:
         p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL),
-                            ",".join(map(str, coarser))], env=env,
+                            ",".join(map(str, coarser)), str(thickness)], env=env,
                            capture_output=True, text=True, timeout=time_limit)
     except subprocess.TimeoutExpired as exc:
         out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
-        keep_log(rings, solver, out)
+        keep_log(rings, solver, thickness, out)
         return solved_row(out, f"time limit {time_limit} s") or {
-            "rings": rings, "solver": solver, "converged": False,
+            "rings": rings, "solver": solver, "thickness": thickness, "converged": False,
             "error": f"time limit {time_limit} s", "wall_s": time.perf_counter() - t}
-    keep_log(rings, solver, p.stdout + p.stderr)
+    keep_log(rings, solver, thickness, p.stdout + p.stderr)
     for line in p.stdout.splitlines():
         if line.startswith("ROW "):
             return json.loads(line[4:])
     row = solved_row(p.stdout, f"exit {p.returncode}: {p.stderr.strip().splitlines()[-1:] or ''}")
     if row:
         return row
-    row = {"rings": rings, "solver": solver, "converged": False, "wall_s": time.perf_counter() - t}
+    row = {"rings": rings, "solver": solver, "thickness": thickness, "converged": False,
+           "wall_s": time.perf_counter() - t}
     if p.returncode < 0:
         # killed by a signal: SIGKILL from outside this script is the kernel's
         # out-of-memory killer; the child's peak is the largest of this
@@ -234,21 +250,23 @@ def chart(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
-    for solver in sorted({r["solver"] for r in rows}):
-        rs = sorted((r for r in rows if r["solver"] == solver and r.get("converged")),
+    for solver, h in sorted({(r["solver"], thickness_of(r)) for r in rows}):
+        rs = sorted((r for r in rows if (r["solver"], thickness_of(r)) == (solver, h) and r.get("converged")),
                     key=lambda r: r["n_triangles"])
         if not rs:
             continue
         n = [r["n_triangles"] for r in rs]
-        ax[0].loglog(n, [r["wall_s"] for r in rs], "o-", label=solver)
-        ax[1].semilogx(n, [r["solve_in_assemblies"] for r in rs], "o-", label=solver)
-        ax[2].loglog(n, [r["peak_mem_gb"] for r in rs], "o-", label=solver)
-    rs = sorted((r for r in rows if "assembly_s" in r), key=lambda r: r["n_triangles"])
+        label = solver if h == LEAF_THICKNESS else f"{solver}, h = {h:g}"
+        ax[0].loglog(n, [r["wall_s"] for r in rs], "o-", label=label)
+        ax[1].semilogx(n, [r["solve_in_assemblies"] for r in rs], "o-", label=label)
+        ax[2].loglog(n, [r["peak_mem_gb"] for r in rs], "o-", label=label)
+    rs = sorted((r for r in rows if "assembly_s" in r and thickness_of(r) == LEAF_THICKNESS),
+                key=lambda r: r["n_triangles"])
     seen = {}
     for r in rs:
         seen.setdefault(r["n_triangles"], r["assembly_s"])
     ax[0].loglog(list(seen), list(seen.values()), "k--", label="one Hessian assembly")
-    ax[0].set(xlabel="triangles", ylabel="wall time of the solve (s)", title="leaf, 2 threads")
+    ax[0].set(xlabel="triangles", ylabel="wall time of the solve (s)", title="leaf (h = 0.02 unless said), 2 threads")
     ax[1].set(xlabel="triangles", ylabel="solve / one Hessian assembly", title="cost in assemblies")
     ax[2].set(xlabel="triangles", ylabel="peak resident memory (GB)", title="memory")
     for a in ax:
@@ -270,22 +288,25 @@ def main():
     ap.add_argument("--repeats", type=int, default=1,
                     help="fresh processes per size and method; the row of the median wall time is kept")
     ap.add_argument("--out", default=str(RESULTS / "scaling.json"))
+    ap.add_argument("--thickness", type=float, default=LEAF_THICKNESS,
+                    help="the leaf's thickness (disc radius 1; the scene file's: 0.02)")
     ap.add_argument("--redo", action="store_true",
                     help="rerun the sizes and methods the file already has (else they are skipped)")
     args = ap.parse_args()
     rings = [8, 16] if args.quick else args.rings
     out = Path(args.out if not args.quick else RESULTS / "scaling_quick.json")
     rows = json.loads(out.read_text())["rows"] if out.exists() and not args.quick else []
-    done = {(r["rings"], r["solver"]) for r in rows}
+    h = args.thickness
+    done = {(r["rings"], r["solver"], thickness_of(r)) for r in rows}
     for k in rings:
         n_est = 6 * k * k
         for solver in args.solvers:
             limit = LIMITS[solver]
-            if (((k, solver) in done and not args.redo) or (limit is not None and n_est > limit)
+            if (((k, solver, h) in done and not args.redo) or (limit is not None and n_est > limit)
                     or (solver.endswith("-nested") and not nested_levels(k))
                     or (solver.endswith("-coarsened") and n_est // FACTOR < COARSEST)):
                 continue
-            runs = [run(k, solver, args.time_limit) for _ in range(args.repeats)]
+            runs = [run(k, solver, args.time_limit, h) for _ in range(args.repeats)]
             ok = [r for r in runs if r.get("converged")]
             # the run of median wall time (all converged), with the walls of all runs
             row = sorted(ok, key=lambda r: r["wall_s"])[len(ok) // 2] if len(ok) == len(runs) else runs[-1]
@@ -295,12 +316,12 @@ def main():
                 # each run's ratio is of one process; their median (the timing
                 # of one assembly after the solve varies by +-10 % between processes)
                 row["solve_in_assemblies"] = float(np.median(row["solve_in_assemblies_runs"]))
-            print(f"rings {k:4d} {solver:8s} " + (
+            print(f"rings {k:4d} {solver:8s} h {h:g} " + (
                 f"{row['n_triangles']:8d} tri {row['wall_s']:8.1f} s = {row['solve_in_assemblies']:6.1f} "
                 f"assemblies, {row['newton_its']} Newton, {row['krylov_per_newton']:.1f} Krylov/Newton, "
                 f"{row['peak_mem_gb']:.2f} GB" if row.get("converged") else f"FAILED {row.get('error')}"),
                 flush=True)
-            rows = [r for r in rows if (r["rings"], r["solver"]) != (k, solver)] + [row]
+            rows = [r for r in rows if (r["rings"], r["solver"], thickness_of(r)) != (k, solver, h)] + [row]
             machine = next((r["machine"] for r in rows if "machine" in r), None)
             out.write_text(json.dumps({"benchmark": "leaf growth scene, solver scaling", "rtol": RTOL,
                                        "threads": THREADS, "machine": machine, "rows": rows}, indent=1))

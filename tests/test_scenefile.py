@@ -159,6 +159,20 @@ def test_shipped_scenes_load_and_their_meshes_read():
                 assert s.read().mesh.n_triangles > 100
 
 
+def test_leaf_of_another_thickness_is_the_same_scene():
+    """scenes.leaf(rings, thickness): the default scene (h = 0.02) on the
+    same disc with only the thickness changed (bench/scaling.py
+    --thickness); a non-physical thickness is refused."""
+    from shellritz.scenes import leaf
+    default, thin = leaf(6), leaf(6, thickness=0.005)
+    assert (default.h, thin.h) == (0.02, 0.005)
+    assert np.array_equal(default.mesh.vertices, thin.mesh.vertices)
+    assert np.array_equal(default._G0, thin._G0) and np.array_equal(default._G1, thin._G1)
+    assert np.array_equal(default._fixed_user, thin._fixed_user) and default._fixed_user.any()
+    with pytest.raises(ValueError, match="thickness"):
+        leaf(6, thickness=-0.01)
+
+
 def test_convert_defaults_scale_a_free_disc_by_1_1(tmp_path):
     """The issue's example: a free disc given point data G0 = diag(1.1, 1.1, 1)
     comes out as the same disc scaled by 1.1 (rigid supports: no stress)."""

@@ -94,7 +94,10 @@ AMG_MAX_LEVELS = 3
 # besides (the 1M leaf ran out of memory at its first Newton step with 18
 # vectors and the levels in double: resident 12.4 GB after A_0, killed at
 # 24.9 GB, at least 4.3 GB = 2 Hessians' values beyond the hierarchy; one
-# more for margin).
+# more for margin).  Two are not enough: with them the 1M leaf (finest
+# level in single precision) chose all 18 vectors and was killed at 22.8 GB
+# resident in its first Newton step (2026-12-05), where with three it
+# chose 12 and peaked at 17.6 GB (2026-12-04).
 AMG_LEAN_NEAR_NULL = 12
 AMG_P_SHARE = 0.33
 AMG_COARSE_SHARE = 1.62
