@@ -26,7 +26,7 @@ of the median wall time is kept (all walls in wall_runs_s), with the median
 of the N ratios solve / assembly (each of one process) as
 solve_in_assemblies.
 
-Writes bench/results/scaling.json (rows: n_triangles, dofs, solver, wall_s,
+Writes bench/results/scaling.json (rows: n_triangles, dofs, solver, thickness, wall_s,
 assembly_s, solve_in_assemblies, peak_mem_gb, newton_its, krylov_its,
 krylov_per_newton, factorizations, nested_levels, energy, grad_rel (final |g| over
 that of the flat disc at t = 1), stable, converged, error; for the AMG methods
