@@ -42,9 +42,12 @@ child processes' output (their Newton iterations) in bench/results/logs/.
 --thickness h runs the leaf thinner than its 0.02 (rows carry thickness;
 rows without it are at 0.02): elements of the 1M-triangle disc are 0.0027
 long, h = 0.005 keeps them about as long as the thickness, where the shell
-model needs them (docs/validity.md).
+model needs them (docs/validity.md).  --thickness-path 0.02,0.01: the first
+solve (the coarsest level of nested iteration) by continuation in the
+thickness through those (Shell.solve(thickness_path=...); rows carry
+thickness_path).
 
-Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200] [--thickness 0.02] [--redo]
+Run:  python bench/scaling.py [--rings 16 45 91 129 182 408] [--solvers pardiso superlu amg pardiso-nested amg-nested pardiso-coarsened amg-coarsened] [--repeats 3] [--time-limit 1200] [--thickness 0.02] [--thickness-path 0.02,0.01] [--redo]
       python bench/scaling.py --quick        (rings 8 and 16)
 """
 
@@ -99,6 +102,8 @@ from shellritz import SolveError
 rings, solver, rtol = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
 coarser = [int(k) for k in sys.argv[4].split(",") if k]
 thickness = float(sys.argv[5])
+path = [float(v) for v in sys.argv[6].split(",") if v] or None    # thickness_path of the first solve
+first = {} if path is None else {"thickness_path": path}
 leaf_h = lambda k: leaf(k, thickness=thickness)
 linear = solver.split("-")[0]
 kernels_s, compiled = prepare_kernels()
@@ -107,7 +112,8 @@ leaf(4).solve(verbose=False, linear=linear)
 warm_s = time.perf_counter() - t
 shell = leaf_h(rings)
 row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solver, thickness=thickness,
-           kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s, nested_levels=[])
+           kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s, nested_levels=[],
+           **({} if path is None else {"thickness_path": path}))
 t = time.perf_counter()
 try:
     start = None
@@ -119,18 +125,20 @@ try:
         scene = load_scene(files("shellritz.meshes") / "leaf.toml")
         mesh, shell = shell.mesh, None       # solve_nested builds the scene on the mesh: one Shell
         res = solve_nested(lambda mesh: scene.build(Surface(mesh), thickness=thickness)[0], mesh, verbose=True,
-                           linear=linear, rtol=rtol)
+                           linear=linear, rtol=rtol, **first)
         shell = res.shell
         row["nested_levels"] = res.history.nested
     for k in coarser:        # nested iteration: each level starts from the previous one
         tk = time.perf_counter()
-        start = leaf_h(k).solve(verbose=False, linear="auto", rtol=rtol, start=start)
+        start = leaf_h(k).solve(verbose=False, linear="auto", rtol=rtol, start=start,
+                                **(first if start is None else {}))
         row["nested_levels"].append(dict(rings=k, n_triangles=int(len(start.shell.mesh.triangles)),
                                          wall_s=time.perf_counter() - tk,
                                          newton_its=len(start.history.iterations),
                                          factorizations=start.history.factorizations))
     if not solver.endswith("-coarsened"):
-        res = shell.solve(verbose=True, linear=linear, rtol=rtol, start=start)
+        res = shell.solve(verbose=True, linear=linear, rtol=rtol, start=start,
+                          **(first if start is None else {}))
     h, converged, error = res.history, True, None
 except SolveError as exc:
     h, converged, error = exc.history, False, str(exc)
@@ -188,13 +196,24 @@ def thickness_of(row):
     return row.get("thickness", LEAF_THICKNESS)
 
 
-def keep_log(rings, solver, thickness, text):
+def config_of(row):
+    """(solver, thickness, thickness path): rows of one configuration form a series."""
+    return row["solver"], thickness_of(row), tuple(row.get("thickness_path") or ())
+
+
+def config_label(solver, h, path):
+    return (solver + ("" if h == LEAF_THICKNESS else f", h = {h:g}")
+            + (f", from h = {' > '.join(f'{v:g}' for v in path)}" if path else ""))
+
+
+def keep_log(rings, solver, thickness, path, text):
     """The child's output (the finest solve's Newton iterations, verbose) in
     bench/results/logs/: what a run that failed or timed out got through."""
     h = "" if thickness == LEAF_THICKNESS else f"_h{thickness:g}"
-    path = RESULTS / "logs" / f"scaling_{rings}_{solver}{h}.log"
-    path.parent.mkdir(exist_ok=True)
-    path.write_text(text)
+    h += "".join(f"_from{v:g}" for v in path)
+    log = RESULTS / "logs" / f"scaling_{rings}_{solver}{h}.log"
+    log.parent.mkdir(exist_ok=True)
+    log.write_text(text)
 
 
 def solved_row(stdout, why):
@@ -206,7 +225,7 @@ def solved_row(stdout, why):
     return None
 
 
-def run(rings, solver, time_limit, thickness):
+def run(rings, solver, time_limit, thickness, path=()):
     env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
                MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
     coarser = nested_levels(rings) if solver.endswith("-nested") else []
@@ -214,15 +233,17 @@ def run(rings, solver, time_limit, thickness):
     peak_before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20
     try:
         p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL),
-                            ",".join(map(str, coarser)), str(thickness)], env=env,
+                            ",".join(map(str, coarser)), str(thickness), ",".join(map(str, path))],
+                           env=env,
                            capture_output=True, text=True, timeout=time_limit)
     except subprocess.TimeoutExpired as exc:
         out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
-        keep_log(rings, solver, thickness, out)
+        keep_log(rings, solver, thickness, path, out)
         return solved_row(out, f"time limit {time_limit} s") or {
             "rings": rings, "solver": solver, "thickness": thickness, "converged": False,
+            **({"thickness_path": list(path)} if path else {}),
             "error": f"time limit {time_limit} s", "wall_s": time.perf_counter() - t}
-    keep_log(rings, solver, thickness, p.stdout + p.stderr)
+    keep_log(rings, solver, thickness, path, p.stdout + p.stderr)
     for line in p.stdout.splitlines():
         if line.startswith("ROW "):
             return json.loads(line[4:])
@@ -230,7 +251,7 @@ def run(rings, solver, time_limit, thickness):
     if row:
         return row
     row = {"rings": rings, "solver": solver, "thickness": thickness, "converged": False,
-           "wall_s": time.perf_counter() - t}
+           "wall_s": time.perf_counter() - t, **({"thickness_path": list(path)} if path else {})}
     if p.returncode < 0:
         # killed by a signal: SIGKILL from outside this script is the kernel's
         # out-of-memory killer; the child's peak is the largest of this
@@ -250,13 +271,13 @@ def chart(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
-    for solver, h in sorted({(r["solver"], thickness_of(r)) for r in rows}):
-        rs = sorted((r for r in rows if (r["solver"], thickness_of(r)) == (solver, h) and r.get("converged")),
+    for config in sorted({config_of(r) for r in rows}):
+        rs = sorted((r for r in rows if config_of(r) == config and r.get("converged")),
                     key=lambda r: r["n_triangles"])
         if not rs:
             continue
         n = [r["n_triangles"] for r in rs]
-        label = solver if h == LEAF_THICKNESS else f"{solver}, h = {h:g}"
+        label = config_label(*config)
         ax[0].loglog(n, [r["wall_s"] for r in rs], "o-", label=label)
         ax[1].semilogx(n, [r["solve_in_assemblies"] for r in rs], "o-", label=label)
         ax[2].loglog(n, [r["peak_mem_gb"] for r in rs], "o-", label=label)
@@ -290,6 +311,9 @@ def main():
     ap.add_argument("--out", default=str(RESULTS / "scaling.json"))
     ap.add_argument("--thickness", type=float, default=LEAF_THICKNESS,
                     help="the leaf's thickness (disc radius 1; the scene file's: 0.02)")
+    ap.add_argument("--thickness-path", default="",
+                    help="comma-separated larger thicknesses the first solve passes through "
+                         "(Shell.solve(thickness_path=...)), e.g. 0.02,0.01")
     ap.add_argument("--redo", action="store_true",
                     help="rerun the sizes and methods the file already has (else they are skipped)")
     args = ap.parse_args()
@@ -297,16 +321,17 @@ def main():
     out = Path(args.out if not args.quick else RESULTS / "scaling_quick.json")
     rows = json.loads(out.read_text())["rows"] if out.exists() and not args.quick else []
     h = args.thickness
-    done = {(r["rings"], r["solver"], thickness_of(r)) for r in rows}
+    path = tuple(float(v) for v in args.thickness_path.split(",") if v)
+    done = {(r["rings"],) + config_of(r) for r in rows}
     for k in rings:
         n_est = 6 * k * k
         for solver in args.solvers:
             limit = LIMITS[solver]
-            if (((k, solver, h) in done and not args.redo) or (limit is not None and n_est > limit)
+            if (((k, solver, h, path) in done and not args.redo) or (limit is not None and n_est > limit)
                     or (solver.endswith("-nested") and not nested_levels(k))
                     or (solver.endswith("-coarsened") and n_est // FACTOR < COARSEST)):
                 continue
-            runs = [run(k, solver, args.time_limit, h) for _ in range(args.repeats)]
+            runs = [run(k, solver, args.time_limit, h, path) for _ in range(args.repeats)]
             ok = [r for r in runs if r.get("converged")]
             # the run of median wall time (all converged), with the walls of all runs
             row = sorted(ok, key=lambda r: r["wall_s"])[len(ok) // 2] if len(ok) == len(runs) else runs[-1]
@@ -316,12 +341,12 @@ def main():
                 # each run's ratio is of one process; their median (the timing
                 # of one assembly after the solve varies by +-10 % between processes)
                 row["solve_in_assemblies"] = float(np.median(row["solve_in_assemblies_runs"]))
-            print(f"rings {k:4d} {solver:8s} h {h:g} " + (
+            print(f"rings {k:4d} {config_label(solver, h, path)} " + (
                 f"{row['n_triangles']:8d} tri {row['wall_s']:8.1f} s = {row['solve_in_assemblies']:6.1f} "
                 f"assemblies, {row['newton_its']} Newton, {row['krylov_per_newton']:.1f} Krylov/Newton, "
                 f"{row['peak_mem_gb']:.2f} GB" if row.get("converged") else f"FAILED {row.get('error')}"),
                 flush=True)
-            rows = [r for r in rows if (r["rings"], r["solver"], thickness_of(r)) != (k, solver, h)] + [row]
+            rows = [r for r in rows if (r["rings"],) + config_of(r) != (k, solver, h, path)] + [row]
             machine = next((r["machine"] for r in rows if "machine" in r), None)
             out.write_text(json.dumps({"benchmark": "leaf growth scene, solver scaling", "rtol": RTOL,
                                        "threads": THREADS, "machine": machine, "rows": rows}, indent=1))

@@ -149,6 +149,22 @@ def test_nested_without_coarser_level_is_the_direct_solve():
     assert res.converged
 
 
+def test_nested_gives_the_thickness_path_to_the_coarsest_level_only():
+    """solve_nested(thickness_path=...): the coarsest level (600 triangles of
+    a 2,400-triangle disc) is solved by continuation in the thickness, the
+    given mesh from the coarse equilibrium at its own thickness.  (At
+    h = 0.005 the given mesh fails from the coarse equilibrium: a coarse
+    level this coarse does not carry the thin leaf's shape, README
+    Scaling.)"""
+    scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+    res = solve_nested(lambda m: scene.build(Surface(m), thickness=0.01)[0], shapes.disc(20),
+                       coarsest=500, verbose=False, thickness_path=[0.04, 0.02])
+    assert [lv["n_triangles"] > 0 for lv in res.history.nested] == [True]
+    assert [s["thickness"] for s in res.history.nested[0]["thickness_stages"]] == [0.04, 0.02]
+    assert res.history.thickness_stages == [] and res.shell.h == 0.01
+    assert res.converged and res.history.stable
+
+
 NESTED_SCENE = """
 [mesh]
 file = "disc.vtu"

@@ -423,3 +423,59 @@ def test_arc_length_needs_a_direct_solver():
     shell, _ = cantilever(4, 1)
     with pytest.raises(SolveError, match="arc length needs a direct linear solver"):
         shell.solve(path="arclength", linear="amg", verbose=False)
+
+
+# ------------------------------------------------------ thickness continuation
+def test_thickness_path_reaches_the_thin_leafs_equilibrium_from_the_thicker_ones():
+    """The leaf at h = 0.005 on 1,944 triangles: by continuation in the
+    thickness (h = 0.02 from the flat disc, then 0.01, then 0.005, each from
+    the last equilibrium) the stable equilibrium of the solve from the flat
+    disc (observed: energy equal to 1e-9; 14 + 4 + 14 Newton iterations
+    against 32).  On finer meshes the flat disc is the hard start (README
+    Solver, thickness_path: 2,400 triangles fail from it after 474 Newton
+    iterations, 125 s, and take 7.2 s by continuation); on coarser ones
+    continuation can end on another stable state (864 triangles: +0.1 %
+    energy)."""
+    flat = leaf(18, thickness=0.005).solve(verbose=False)
+    res = leaf(18, thickness=0.005).solve(verbose=False, thickness_path=[0.02, 0.01])
+    stages = res.history.thickness_stages
+    assert [s["thickness"] for s in stages] == [0.02, 0.01]
+    assert all(s["stable"] for s in stages) and res.history.stable and flat.history.stable
+    assert res.shell.h == 0.005 and not res.history.notes
+    assert stages[0]["energy"] > stages[1]["energy"] > res.energy      # thinner: softer
+    assert res.energy == pytest.approx(flat.energy, rel=1e-9)
+
+
+def test_thickness_path_solves_a_failing_stage_through_an_intermediate_thickness(monkeypatch):
+    """A stage whose solve fails (here forced: at most 3 Newton iterations
+    at h = 0.005 from h = 0.01, no load steps to cut at t = 1) is approached
+    through the geometric mean of the two thicknesses (history note)."""
+    from shellritz import solve as solve_module
+    own = leaf(18, thickness=0.005)
+    original = type(own).solve
+
+    def solve(engine, *args, **kw):
+        if engine is own and kw.get("start") is not None and engine.h == 0.005:
+            kw = dict(kw, max_iter=3) if kw["start"].shell.h == 0.01 else kw
+        return original(engine, *args, **kw)
+    monkeypatch.setattr(type(own), "solve", solve)
+    res = own.solve(verbose=False, thickness_path=[0.02, 0.01])
+    assert [s["thickness"] for s in res.history.thickness_stages] == pytest.approx([0.02, 0.01, 0.005 * 2 ** 0.5])
+    assert any("no equilibrium at h = 0.005 from h = 0.01" in n for n in res.history.notes)
+    assert res.converged and res.history.stable
+    assert solve_module.MIN_THICKNESS_RATIO > 1
+
+
+def test_thickness_path_checks_its_input_and_keeps_a_failed_stage():
+    shell = leaf(6, thickness=0.005)
+    for bad, why in (([0.004], "larger than the shell's own"), ([0.01, 0.02], "must decrease"),
+                     ([], "empty"), ("thick", "sequence of thicknesses"),
+                     ([0.01, float("nan")], "finite")):
+        with pytest.raises(ValueError, match=why):
+            shell.solve(verbose=False, thickness_path=bad)
+    with pytest.raises(TypeError, match="triangle engine"):
+        PlaneStrainShell.strip(20, 1.0, 0.02, NeoHookean(1.0, nu=0.3)).solve(
+            verbose=False, thickness_path=[0.04])
+    with pytest.raises(SolveError, match=r"thickness continuation, stage h = 0.02") as info:
+        shell.solve(verbose=False, thickness_path=[0.02], max_iter=1, min_dt=0.25)
+    assert info.value.result is not None and info.value.history.thickness_stages == []

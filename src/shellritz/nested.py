@@ -189,9 +189,12 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
     solver by size (``linear="auto"``: a factorization where it fits; an
     AMG method asked for the given mesh would meet the coarse levels'
     buckling from the reference state, where it is no match for a
-    factorization, README "Scaling")."""
+    factorization, README "Scaling").  A ``thickness_path`` (continuation
+    in the thickness, Shell.solve) is taken by the first solve only, the
+    coarsest level's (the given mesh's if it has no coarser level)."""
     if not isinstance(mesh, Mesh):
         raise TypeError(f"solve_nested: mesh must be a shellritz.Mesh, not {type(mesh).__name__}")
+    first = {k: options.pop(k) for k in ("thickness_path",) if k in options}
     coarse_options = {k: v for k, v in options.items() if k != "linear"}
     start, record = None, []
     for n in levels(mesh, coarsest, factor):
@@ -201,14 +204,17 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
         shell = _built(build, coarse)
         if verbose:
             print(f"nested iteration: level of {len(coarse.triangles)} triangles", flush=True)
-        start = shell.solve(verbose=verbose, start=start, **coarse_options)
+        start = shell.solve(verbose=verbose, start=start, **coarse_options,
+                            **(first if start is None else {}))
         h = start.history
         record.append(dict(n_triangles=int(len(coarse.triangles)), coarsen_s=t1 - t0,
                            wall_s=time.perf_counter() - t1, newton_its=len(h.iterations),
-                           factorizations=h.factorizations, linear=h.linear))
+                           factorizations=h.factorizations, linear=h.linear,
+                           thickness_stages=h.thickness_stages))
     if verbose and record:
         print(f"nested iteration: the given mesh ({len(mesh.triangles)} triangles)", flush=True)
-    result = _built(build, mesh).solve(verbose=verbose, start=start, **options)
+    result = _built(build, mesh).solve(verbose=verbose, start=start, **options,
+                                       **(first if start is None else {}))
     result.history.nested = record
     return result
 

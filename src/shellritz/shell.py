@@ -17,6 +17,7 @@ The continuation parameter t in [0, 1] ramps the growth
 (``t * load``) and prescribed motions.
 """
 
+import copy
 import warnings
 from dataclasses import dataclass
 
@@ -94,12 +95,7 @@ class Shell(Solvable):
         if membrane not in self.MEMBRANES:
             raise ValueError(f"membrane={membrane!r}: choose one of {self.MEMBRANES}")
         self.membrane = membrane
-        # the h^5 strain-gradient term that keeps the bending levels bounded
-        # below on fine meshes (strain_gradient.py, docs/validity.md)
-        active = dkt_active_elements(mesh, self.h)
-        self.strain_gradient = (None if level == "membrane" or not active.any()
-                                or coefficient(material, self.h) == 0.0      # nu = 0: R = 0
-                                else DKTStrainGradient(mesh, material, self.h, active))
+        self.strain_gradient = self._strain_gradient_term()
         n = mesh.n_nodes
         self.X = mesh.vertices
         self.frames = mesh.frames.copy()
@@ -121,6 +117,27 @@ class Shell(Solvable):
         self._pressure = 0.0
         self._pressure_z = None
         self._prepared = False
+
+    def _strain_gradient_term(self):
+        """The h^5 strain-gradient term that keeps the bending levels bounded
+        below on fine meshes (strain_gradient.py, docs/validity.md), on the
+        elements shorter than h; None where there are none."""
+        active = dkt_active_elements(self.mesh, self.h)
+        if self.level == "membrane" or not active.any() or coefficient(self.law, self.h) == 0.0:
+            return None                   # (nu = 0: R = 0)
+        return DKTStrainGradient(self.mesh, self.law, self.h, active)
+
+    def with_thickness(self, thickness):
+        """This shell (mesh, material, growth, boundary conditions, loads) at
+        another thickness: a new Shell for continuation in the thickness
+        (``solve(thickness_path=...)``); a pressure keeps its face."""
+        other = copy.copy(self)
+        other.h = check_thickness(thickness)
+        other.strain_gradient = other._strain_gradient_term()
+        if self._pressure_z is not None:            # the face Z = -h/2 or +h/2
+            other._pressure_z = self._pressure_z * other.h / self.h
+        other._prepared = False
+        return other
 
     # ------------------------------------------------------------------ growth
     def set_growth(self, G0=None, G1=None, function=None):
@@ -578,6 +595,7 @@ class Shell(Solvable):
         return float(np.ptp(self.X, axis=0).max())
 
     def free_state(self):
+        self._setup()                  # (a shell not solved yet: its reference state)
         return self.U.reshape(-1)[self.free].copy()
 
     def set_free_state(self, x):

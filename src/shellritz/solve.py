@@ -169,6 +169,7 @@ class SolveHistory:
     factorizations: int = 0
     evaluations: list = field(default_factory=lambda: [0, 0, 0])   # energy / +gradient / +Hessian
     nested: list = field(default_factory=list)    # coarse levels of nested.solve_nested (dicts)
+    thickness_stages: list = field(default_factory=list)   # solve(thickness_path=...): dicts
 
     @property
     def assemblies(self):
@@ -1196,12 +1197,38 @@ def _record_path(problem, history, t, E, negative):
     history.path.append(point)
 
 
+# solve(thickness_path=...): a thickness whose solve fails is approached
+# through the geometric mean of it and the last one solved, while their
+# ratio is above this
+MIN_THICKNESS_RATIO = 1.1
+
+
+def _checked_thickness_path(path, h):
+    """solve(thickness_path=...) as a list of floats: finite, decreasing,
+    each above the engine's thickness h."""
+    try:
+        path = [float(v) for v in np.atleast_1d(np.asarray(path, dtype=float))]
+    except (TypeError, ValueError):
+        raise ValueError(f"thickness_path must be a sequence of thicknesses, got {path!r}") from None
+    if not path:
+        raise ValueError("thickness_path is empty")
+    for k, v in enumerate(path):
+        if not np.isfinite(v) or v <= h:
+            raise ValueError(f"thickness_path[{k}] = {v!r}: each thickness must be finite and "
+                             f"larger than the shell's own, {h:g}")
+        if k and v >= path[k - 1]:
+            raise ValueError(f"thickness_path[{k}] = {v!r}: the thicknesses must decrease "
+                             f"(previous {path[k - 1]:g})")
+    return path
+
+
 class Solvable:
     """The ``solve`` method shared by the engines.  An engine implements the
     problem protocol above and ``_setup()``, ``_describe()`` (one line) and
     ``_result(history, wall_s, converged, t)``."""
 
-    def solve(self, steps=1, verbose=True, min_dt=1e-4, monitor=None, start=None, **options):
+    def solve(self, steps=1, verbose=True, min_dt=1e-4, monitor=None, start=None,
+              thickness_path=None, **options):
         """Equilibrium at t = 1 by continuation from the reference (t = 0),
         or from ``start``.
 
@@ -1213,7 +1240,13 @@ class Solvable:
         start: a Result on another mesh of the same reference surface
         (typically coarser): its state is carried onto this mesh
         (transfer.py) and Newton starts there, at the result's t (nested
-        iteration: README "Scaling").  Solver options (SolverOptions, with
+        iteration: README "Scaling"); thickness_path: larger thicknesses,
+        decreasing, at which the scene is solved first (the first as asked,
+        from the reference or ``start``, each next from the last
+        equilibrium) before this engine's own thickness: continuation in the
+        thickness, for thin shells whose buckling from the reference state
+        Newton finds only slowly (README "Solver"); the stages are in
+        ``result.history.thickness_stages``.  Solver options (SolverOptions, with
         their defaults and meaning): rtol (relative gradient tolerance: to
         the loads, to the gradient where a step starts and, with start, to
         the gradient of the reference state at the result's t),
@@ -1237,6 +1270,9 @@ class Solvable:
             raise TypeError(f"solve() got unknown option(s) {', '.join(unknown)}; "
                             f"the options are {', '.join(sorted(known))}")
         opts = SolverOptions(verbose=verbose, **options)
+        if thickness_path is not None:
+            return self._solve_through_thicknesses(thickness_path, steps, verbose, min_dt, monitor,
+                                                   start, options)
         self._setup()
         t_start, force_scale = (0.0, 0.0) if start is None else self._start_from(start)
         self._monitor = (monitor if monitor is None or callable(monitor)
@@ -1251,6 +1287,60 @@ class Solvable:
             exc.result = self._result(exc.history, time.perf_counter() - t0, False, exc.last_t)
             raise
         return self._result(history, time.perf_counter() - t0, True, history.steps[-1][0])
+
+    def _solve_through_thicknesses(self, path, steps, verbose, min_dt, monitor, start, options):
+        """solve(thickness_path=path): the scene at each thickness of the
+        path, then at this engine's own, each from the last equilibrium (the
+        first from ``start`` or the reference, with ``steps``).  Where one
+        fails, the thickness halfway (geometric mean) between it and the
+        last solved one is solved first, down to a ratio of
+        MIN_THICKNESS_RATIO (history note); then its SolveError is raised,
+        with its result and the stages solved.  The result's
+        ``history.thickness_stages`` lists the stages before the own
+        thickness."""
+        path = _checked_thickness_path(path, getattr(self, "h", 0.0)) + [getattr(self, "h", 0.0)]
+        stages, notes, last_h = [], [], None
+        while True:
+            h = path[0]
+            own = len(path) == 1
+            t0 = time.perf_counter()
+            if verbose:
+                print(f"thickness continuation: h = {h:g}", flush=True)
+            engine = self if own else self.with_thickness(h)
+            try:
+                result = engine.solve(steps=steps if start is None else 1, verbose=verbose,
+                                      min_dt=min_dt, monitor=monitor if own else None,
+                                      start=start, **options)
+            except SolveError as exc:
+                if last_h is not None and last_h / h > MIN_THICKNESS_RATIO:
+                    between = float(np.sqrt(last_h * h))
+                    notes.append(f"thickness continuation: no equilibrium at h = {h:g} from "
+                                 f"h = {last_h:g} ({exc}); h = {between:g} first")
+                    if verbose:
+                        print("  " + notes[-1], flush=True)
+                    path.insert(0, between)
+                    continue
+                exc.args = (f"thickness continuation, stage h = {h:g}: {exc}",)
+                exc.history.thickness_stages = stages
+                exc.history.notes[:0] = notes
+                raise
+            record = result.history
+            if own:
+                record.thickness_stages = stages
+                record.notes[:0] = notes
+                return result
+            stages.append(dict(thickness=h, newton_its=len(record.iterations),
+                               assemblies=record.assemblies,
+                               factorizations=record.factorizations,
+                               energy=float(result.energy), stable=record.stable,
+                               wall_s=time.perf_counter() - t0))
+            start, last_h = result, h
+            path.pop(0)
+
+    def with_thickness(self, thickness):
+        """This engine at another thickness (solve(thickness_path=...))."""
+        raise TypeError(f"solve(thickness_path=...) is available for the triangle engine (Shell), "
+                        f"not for {type(self).__name__}")
 
     def _start_from(self, result):
         """Carry ``result``'s state onto this engine; returns its t and the
