@@ -89,6 +89,8 @@ def test_solver_table_follows_the_signature_of_shell_solve():
                      for k, v in inspect.signature(Shell.solve).parameters.items()
                      if k in params and isinstance(v.default, (int, float, bool, str)))
     assert scene("[solver]\n" + text).solver.keys() <= params
+    # continuation in the thickness: a list, checked by Shell.solve
+    assert scene("[solver]\nthickness_path = [0.04, 0.02]").solver == {"thickness_path": [0.04, 0.02]}
 
 
 @pytest.mark.parametrize("value, message", [
