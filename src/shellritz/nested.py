@@ -194,7 +194,7 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
     coarsest level's (the given mesh's if it has no coarser level)."""
     if not isinstance(mesh, Mesh):
         raise TypeError(f"solve_nested: mesh must be a shellritz.Mesh, not {type(mesh).__name__}")
-    first = {k: options.pop(k) for k in ("thickness_path",) if k in options}
+    first = {"thickness_path": options.pop("thickness_path")} if "thickness_path" in options else {}
     coarse_options = {k: v for k, v in options.items() if k != "linear"}
     start, record = None, []
     for n in levels(mesh, coarsest, factor):

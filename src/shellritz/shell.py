@@ -115,7 +115,7 @@ class Shell(Solvable):
         self._q_plus = np.zeros((n, 3))
         self._q_minus = np.zeros((n, 3))
         self._pressure = 0.0
-        self._pressure_z = None
+        self._pressure_face = "middle"    # face of the follower pressure (pressure())
         self._prepared = False
 
     def _strain_gradient_term(self):
@@ -134,8 +134,6 @@ class Shell(Solvable):
         other = copy.copy(self)
         other.h = check_thickness(thickness)
         other.strain_gradient = other._strain_gradient_term()
-        if self._pressure_z is not None:            # the face Z = -h/2 or +h/2
-            other._pressure_z = self._pressure_z * other.h / self.h
         other._prepared = False
         return other
 
@@ -462,7 +460,8 @@ class Shell(Solvable):
         if not np.isfinite(p):
             raise ValueError("pressure must be finite")
         self._pressure = float(p)
-        self._pressure_z = pressure_face(face, self.h)
+        pressure_face(face, self.h)        # checks the name
+        self._pressure_face = face
         return self
 
     # ------------------------------------------------------------------ setup
@@ -615,7 +614,7 @@ class Shell(Solvable):
         # trial states (line search) start from, but do not overwrite, the warm starts
         Y1 = self.Y1 if mode > 0 else self.Y1.copy()
         has_load = bool(np.any(self._qp_t) or np.any(self._qm_t))
-        face = self._pressure_z
+        face = pressure_face(self._pressure_face, self.h)
         assemble_dkt(mode, self._level, self.law.kind, self.law.psi, self.law.params, self.h,
                      self.membrane == "regge", self.mesh.triangles, self.X, self.frames, U,
                      self.bary, self.wts, self._Gt0, self._Gt1, self._qp_t, self._qm_t, has_load,

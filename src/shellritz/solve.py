@@ -434,7 +434,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                 negative = None
             else:
                 negative, setup = lin.factorize(K)
-            inertia = negative if lin.direct and not reused and not lin.solver.single else None
+            inertia = negative if lin.direct and not lin.solver.single else None   # None if reused
             factorized = True
         if trust is None:
             trust = _uses_trust_region(opts, lin.solver)
@@ -1298,7 +1298,8 @@ class Solvable:
         with its result and the stages solved.  The result's
         ``history.thickness_stages`` lists the stages before the own
         thickness."""
-        path = _checked_thickness_path(path, getattr(self, "h", 0.0)) + [getattr(self, "h", 0.0)]
+        own_h = getattr(self, "h", 0.0)
+        path = _checked_thickness_path(path, own_h) + [own_h]
         stages, notes, last_h = [], [], None
         while True:
             h = path[0]
