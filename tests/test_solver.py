@@ -233,6 +233,26 @@ def test_fast_newton_steps_reuse_the_previous_factorization(monkeypatch):
     assert always.stable and not always.notes
 
 
+def test_a_failed_reuse_still_lets_the_last_newton_step_be_predicted(monkeypatch):
+    """A reused factorization that fails (CG past REUSE_MAX_CG) is replaced by
+    a new one, and the step is still the one after a fast step: the last
+    Newton step is predicted as without reuse.  16-ring leaf with every
+    reuse failing (REUSE_MAX_CG = 1): 16 Hessian assemblies and 15
+    factorizations, as with reuse_factorization="never" (before the fix 17
+    and 16: the failure also dropped the prediction, which on the 100k-triangle
+    leaf cost a Hessian and a factorization of the finest mesh)."""
+    from shellritz import solve as solve_module
+    monkeypatch.setattr(solve_module, "REUSE_MAX_CG", 1)
+    never = leaf(16).solve(verbose=False, reuse_factorization="never").history
+    always = leaf(16).solve(verbose=False, reuse_factorization="always").history
+    assert sum("reused factorization: CG maxiter" in n for n in always.notes) >= 1
+    assert always.evaluations[1] >= 1                     # a predicted last step
+    assert always.assemblies == never.assemblies
+    assert always.factorizations == never.factorizations
+    assert always.iterations[-1].energy == pytest.approx(never.iterations[-1].energy, rel=1e-12)
+    assert always.stable and never.stable
+
+
 def test_predicted_last_newton_step_saves_a_hessian_per_load_step(monkeypatch):
     """Where quadratic convergence puts |g| after the next full Newton step
     below CONVERGED_MARGIN x the tolerance, that state gets its gradient

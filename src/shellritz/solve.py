@@ -411,6 +411,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
     pd_since = None             # |g| at the first of the current run of positive definite Hessians
     pd_run = 0
     fast = False                # the last step was a full Newton step that cut |g| tenfold
+    may_reuse = False           # so the previous factorization may serve this step (fast, and
+    #                             not yet tried and failed at this x)
     reused = False              # this step is solved with the previous factorization
     inertia = None              # negative pivots of a double-precision factorization of K
     done = lambda: (K, inertia if factorized else None)
@@ -420,7 +422,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             if watch is None or E < watch["E"]:
                 return done()
             x, E, g, K, gnorm = _back_to(problem, watch)     # an equilibrium above the start
-            watch, watch_spent, factorized, last_step, fast = None, True, False, np.inf, False
+            watch, watch_spent, factorized, last_step = None, True, False, np.inf
+            fast = may_reuse = False
         stalled = (watch is None and len(gnorms) >= 8 and gnorm > 0.5 * gnorms[-7]
                    and energies[-7] - E <= 1e-6 * max(problem.energy_magnitude(), abs(E)))
         if it == opts.max_iter or stalled:
@@ -429,7 +432,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             return None
         setup = 0.0
         if not factorized:
-            reused = fast and lin.may_reuse(opts, len(x))
+            reused = may_reuse and lin.may_reuse(opts, len(x))
             if reused:
                 negative = None
             else:
@@ -482,10 +485,11 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
         solve_s = time.perf_counter() - ts
         if reused and info["reason"] != "converged":
             # the previous factorization is no longer a good preconditioner
-            # (or the Hessian is indefinite): factorize and solve again
+            # (or the Hessian is indefinite): factorize and solve again (the
+            # last step is still fast: the last Newton step may be predicted)
             history.notes.append(f"t={t:.4g} it={it}: reused factorization: CG {info['reason']} "
                                  f"after {info['iterations']} iterations; factorized")
-            factorized = fast = False
+            factorized = may_reuse = False
             continue
         if single and info["reason"] == "maxiter":
             # the Hessian is too ill-conditioned for a single-precision factor
@@ -536,7 +540,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             trial = _watchdog_trial(problem, x, p, newton_step, g, matvec, noise(E))
             if trial is None and watch is not None:        # off the probation: back
                 x, E, g, K, gnorm = _back_to(problem, watch)
-                watch, watch_spent, factorized, fast = None, True, False, False
+                watch, watch_spent, factorized = None, True, False
+                fast = may_reuse = False
                 continue
             if trial is not None:
                 if watch is None and trial[0] >= E:
@@ -552,7 +557,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                                                     uphill=watch is not None))
                 E, g, K = trial
                 gnorm_prev, gnorm = gnorm, np.linalg.norm(g)
-                fast = newton_step and gnorm <= 0.1 * gnorm_prev
+                fast = may_reuse = newton_step and gnorm <= 0.1 * gnorm_prev
                 gnorms.append(gnorm)
                 energies.append(E)
                 factorized, last_step = False, np.abs(p).max()
@@ -562,7 +567,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                         watch = None                      # below the start: monotone again
                     elif watch["steps"] > opts.watchdog:
                         x, E, g, K, gnorm = _back_to(problem, watch)
-                        watch, watch_spent, last_step, fast = None, True, np.inf, False
+                        watch, watch_spent, last_step = None, True, np.inf
+                        fast = may_reuse = False
                 if opts.verbose:
                     print(f"    t={t:.4f} it={it:2d}  E={E: .10e}  |g|={gnorm:.3e}  full Newton step"
                           + (" (watchdog)" if watch is not None else ""), flush=True)
@@ -638,7 +644,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                     return None
             factorized = False
             gnorm_prev, gnorm = gnorm, np.linalg.norm(g)
-            fast = newton_step and alpha == 1.0 and gnorm <= 0.1 * gnorm_prev
+            fast = may_reuse = newton_step and alpha == 1.0 and gnorm <= 0.1 * gnorm_prev
             gnorms.append(gnorm)
             energies.append(E)
             rec.energy, rec.grad_norm = E, gnorm
