@@ -13,9 +13,10 @@ Scenes (src/shellritz/benchmark_scenes.py, scenes.leaf):
 
 Configurations: globalization ``line-search`` / ``trust-region`` x linear
 solver ``direct`` (PARDISO where installed, else SuperLU) / ``amg``.  The
-arc-length scenes need a direct solver (the bordered systems of the
-corrector solve with the factorization); their AMG configurations are run
-too and recorded with the solver's error (``supported`` false).
+arc-length scenes need a factorization (the bordered systems of the
+corrector solve with it, and its inertia tells limit from bifurcation
+points): with ``amg`` the solver falls back to the direct one for the path
+(``linear_used`` "amg->pardiso", a history note).
 
 Each run is a separate process with a time limit per solve; the solve alone is timed
 (kernels loaded and the linear solver's library initialized by a small
@@ -95,7 +96,6 @@ def run_one(scene, config, size, repeat=1):
     from shellritz import SolveError
     kind = SCENES[scene][1]
     opts = solver_options(scene, config)
-    supported = not (opts.get("path") == "arclength" and opts["linear"] == "amg")
     warm_up(kind, opts["linear"])
     walls = []
     for _ in range(repeat):
@@ -113,7 +113,7 @@ def run_one(scene, config, size, repeat=1):
     its = history.iterations if history is not None else []
     energy = getattr(res, "energy", None) if res is not None else None
     return {
-        "scene": scene, "config": config, "size": size, "supported": supported,
+        "scene": scene, "config": config, "size": size,
         "globalization": opts["globalization"], "linear": opts["linear"],
         "linear_used": history.linear if history is not None else None,
         "dofs": len(eng.free) if hasattr(eng, "free") else None,
@@ -143,8 +143,7 @@ def run_isolated(scene, config, size, repeat, threads, time_limit):
                MKL_NUM_THREADS=str(threads), OPENBLAS_NUM_THREADS=str(threads))
     cmd = [sys.executable, __file__, "--one", scene, config, "--size", str(size), "--repeat", str(repeat)]
     base = {"scene": scene, "config": config, "size": size, "converged": False, "newton_its": None,
-            "krylov_its": None, "energy": None, "stable": None,
-            "supported": "arclength" != SCENES[scene][2].get("path") or config.endswith("direct")}
+            "krylov_its": None, "energy": None, "stable": None}
     t0 = time.perf_counter()
     try:
         p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=time_limit * repeat + 120)
@@ -213,7 +212,7 @@ def main():
 def chart(out, path):
     """Scenes x configurations: converged and stable (green), converged after
     AMG fell back to the direct solver (orange), converged but unstable or
-    not assessed (yellow), failed (red), not supported (grey); Newton
+    not assessed (yellow), failed (red); Newton
     iterations, wall time and the energy above the scene's lowest in each
     cell."""
     import matplotlib
@@ -229,9 +228,7 @@ def chart(out, path):
     fig, ax = plt.subplots(figsize=(2.4 * len(configs) + 2.5, 0.85 * len(scenes) + 1.5))
     for r in rows:
         i, j = scenes.index(r["scene"]), configs.index(r["config"])
-        if not r.get("supported", True):
-            code[i, j], text = 0, "arc length:\ndirect solver only"
-        elif not r["converged"]:
+        if not r["converged"]:
             code[i, j], text = 1, "failed"
         else:
             fallback = r.get("linear_used") not in (None, r.get("linear"))
@@ -244,8 +241,8 @@ def chart(out, path):
             if E0 is not None and r["energy"] is not None:
                 text += f"\ndE/|E| = {(r['energy'] - E0) / max(abs(E0), 1e-300):.1e}"
         ax.text(j, i, text, ha="center", va="center", fontsize=7.5)
-    ax.imshow(code, cmap=ListedColormap(["#cccccc", "#f4a6a6", "#f7e08a", "#f7c08a", "#a8dba8"]),
-              vmin=0, vmax=4, aspect="auto")
+    ax.imshow(code, cmap=ListedColormap(["#f4a6a6", "#f7e08a", "#f7c08a", "#a8dba8"]),
+              vmin=1, vmax=4, aspect="auto")
     ax.set_xticks(range(len(configs)), configs, fontsize=8)
     ax.set_yticks(range(len(scenes)), [f"{s}\n({next(r.get('dofs') for r in rows if r['scene'] == s)} DOFs)"
                                        for s in scenes], fontsize=8)

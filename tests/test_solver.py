@@ -439,9 +439,24 @@ def test_options_are_checked_with_clear_errors():
         shell.solve(max_dt=0, verbose=False)
 
 
-def test_arc_length_needs_a_direct_solver():
+def test_arc_length_with_amg_falls_back_to_the_direct_solver(monkeypatch):
+    """Arc length needs a factorization (bordered solves, inertia): with
+    linear="amg" the path is followed with the direct solver (history note),
+    the same path as with it from the start; above AUTO_DIRECT_MAX_DOFS a
+    clear error instead."""
+    from shellritz import solve as solve_module
+    shell, tip = cantilever(4, 1)
+    amg = shell.solve(path="arclength", linear="amg", steps=4, verbose=False)
+    assert amg.history.linear in ("amg->pardiso", "amg->superlu")
+    assert any("arc length needs a factorization" in n for n in amg.history.notes)
     shell, _ = cantilever(4, 1)
-    with pytest.raises(SolveError, match="arc length needs a direct linear solver"):
+    direct = shell.solve(path="arclength", linear=amg.history.linear.split("->")[1], steps=4,
+                         verbose=False)
+    assert len(amg.history.path) == len(direct.history.path) > 2
+    np.testing.assert_allclose(tip_of(amg, tip), tip_of(direct, tip), rtol=0, atol=1e-10)
+    monkeypatch.setattr(solve_module, "AUTO_DIRECT_MAX_DOFS", 10)
+    shell, _ = cantilever(4, 1)
+    with pytest.raises(SolveError, match="arc length needs a direct linear solver, and 72 free DOFs"):
         shell.solve(path="arclength", linear="amg", verbose=False)
 
 

@@ -52,9 +52,9 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .linalg import (AMG_LEAN_NEAR_NULL, PRECISIONS, CGPath, LinearSolverError, free_rigid_modes,
-                     jacobi, lower_matvec, make_linear_solver, projector, resolve_method,
-                     steihaug_cg)
+from .linalg import (AMG_LEAN_NEAR_NULL, AUTO_DIRECT_MAX_DOFS, PRECISIONS, CGPath,
+                     LinearSolverError, free_rigid_modes, jacobi, lower_matvec, make_linear_solver,
+                     projector, resolve_method, steihaug_cg)
 
 GLOBALIZATIONS = ("auto", "trust-region", "line-search")
 PATHS = ("load", "arclength")
@@ -1065,11 +1065,20 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
     ds_max = opts.arc_max_ds or 4 * ds
     x = problem.free_state()
     E, _, K = problem.evaluate(x, 2)
-    negative, _ = lin.factorize(K)
-    del K
+    if lin.solver is None or lin.direct:       # (None: the start needed no Newton step)
+        negative, _ = lin.factorize(K)
     if not lin.direct:
-        raise SolveError("arc length needs a direct linear solver (linear='pardiso' or 'superlu')",
-                         last_t=t, history=history)
+        # the corrector's bordered solves and the inertia that tells limit
+        # from bifurcation points need a factorization: AMG (chosen, or by
+        # "auto" on a large mesh) gives way to the direct solver where its
+        # factors fit, else the path cannot be followed
+        if len(x) > AUTO_DIRECT_MAX_DOFS:
+            raise SolveError(f"arc length needs a direct linear solver, and {len(x)} free DOFs are "
+                             f"more than one takes here (AUTO_DIRECT_MAX_DOFS = {AUTO_DIRECT_MAX_DOFS}); "
+                             "use path='load'", last_t=t, history=history)
+        negative, _ = lin.fall_back_to_direct(K, "arc length needs a factorization (bordered "
+                                                 "solves, inertia)")
+    del K
 
     def tangent(x, t, previous, negative):
         """Unit tangent at a converged, factorized point (K dx = -dg/dt dt),
