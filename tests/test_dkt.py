@@ -274,25 +274,33 @@ def test_colouring_makes_parallel_assembly_race_free(name, membrane):
 
 
 def test_hessian_pattern_matches_a_coo_assembly():
-    """The node-by-node CSR pattern and element map give the same lower
-    triangle as scipy's COO assembly of random symmetric element matrices,
-    restricted to the free DOFs (about a third of the DOFs fixed at random)."""
-    from shellritz.kernels.assembly import hessian_pattern
+    """The node-by-node CSR pattern and its map of entry positions (the
+    element scatter and the position blocks of a pressure) give the same
+    lower triangle as scipy's COO assembly of random symmetric element
+    matrices, restricted to the free DOFs (about a third of the DOFs fixed at
+    random)."""
+    from shellritz.kernels.assembly import add_position_blocks, hessian_pattern, scatter_element
     mesh = shapes.rectangle(5, 4, perturb=0.2)
     rng = np.random.default_rng(5)
     ndof = 9 * mesh.n_nodes
     free = np.where(rng.random(ndof) > 0.35)[0]
     fidx = -np.ones(ndof, np.int64)
     fidx[free] = np.arange(len(free))
-    indptr, indices, emap = hessian_pattern(mesh.triangles, fidx.reshape(-1, 9))
     tri = mesh.triangles
+    indptr, indices, hmap = hessian_pattern(tri, fidx.reshape(-1, 9))
     Ke = rng.standard_normal((len(tri), 27, 27))
     Ke = Ke + Ke.transpose(0, 2, 1)
-    p, q = np.tril_indices(27)
+    HV = rng.standard_normal((len(tri), 3, 3, 3, 3))
+    HV = HV + HV.transpose(0, 2, 1, 4, 3)              # symmetric overall
     data = np.zeros(len(indices))
-    np.add.at(data, emap[emap >= 0], Ke[:, p, q][emap >= 0])
+    G = np.zeros((mesh.n_nodes, 3, 3))
+    for e in range(len(tri)):
+        scatter_element(e, 2, tri, np.zeros((9, 3)), np.triu(Ke[e]), hmap, G, data)
+    add_position_blocks(tri, HV, 0.5, hmap, data)
     K = sp.csr_matrix((data, indices, indptr), shape=(len(free), len(free)))
     assert K.has_canonical_format                     # sorted, no duplicates
+    at = (9 * np.arange(3)[:, None] + np.arange(3)).ravel()     # position DOFs (node, component)
+    Ke[:, at[:, None], at[None, :]] += 0.5 * HV.transpose(0, 1, 3, 2, 4).reshape(len(tri), 9, 9)
     ldof = (9 * tri[:, :, None] + np.arange(9)).reshape(len(tri), 27)
     rows = np.broadcast_to(ldof[:, :, None], Ke.shape).ravel()
     cols = np.broadcast_to(ldof[:, None, :], Ke.shape).ravel()

@@ -511,18 +511,18 @@ class Shell(Solvable):
         self._prepared = True
 
     def _build_pattern(self):
-        """Free-DOF numbering, the Hessian's CSR pattern with the element map,
-        and the element colouring (kernels/assembly.py)."""
+        """Free-DOF numbering, the Hessian's CSR pattern with its map of entry
+        positions, and the element colouring (kernels/assembly.py)."""
         tri = self.mesh.triangles
         fidx = -np.ones(9 * self.mesh.n_nodes, np.int64)
         fidx[self.free] = np.arange(len(self.free))
         self.free_index = fidx
         sg = self.strain_gradient
         pattern_tri = tri if sg is None else np.vstack([tri, sg.virtual_triangles()])
-        self._indptr, self._indices, emap = hessian_pattern(pattern_tri, fidx.reshape(-1, 9))
-        self._emap = emap[: len(tri)].copy()
+        self._indptr, self._indices, hmap = hessian_pattern(pattern_tri, fidx.reshape(-1, 9))
+        self._hmap = hmap[:3] + (hmap[3][: len(tri)],)
         if sg is not None:
-            sg.set_pattern(emap[len(tri):])
+            sg.set_pattern(hmap[3][len(tri):])
         self._nnz = len(self._indices)
         colour = color_elements(tri, self.mesh.n_nodes)
         self._order = np.argsort(colour, kind="stable")
@@ -619,7 +619,7 @@ class Shell(Solvable):
                      self.membrane == "regge", self.mesh.triangles, self.X, self.frames, U,
                      self.bary, self.wts, self._Gt0, self._Gt1, self._qp_t, self._qm_t, has_load,
                      0.0 if face is None else self._p_t, 0.0 if face is None else face,
-                     Y1, self.Y2, self._order, self._colour_start, self._emap,
+                     Y1, self.Y2, self._order, self._colour_start, self._hmap,
                      self._Le, self._G, data, self._status)
         if self._status.any():
             e = int(np.argmax(self._status != 0))
@@ -643,7 +643,7 @@ class Shell(Solvable):
         if mode == 1:
             return E, g, None
         if self._p_t:
-            add_position_blocks(self.mesh.triangles, HV, -self._p_t, self._emap, data)
+            add_position_blocks(self.mesh.triangles, HV, -self._p_t, self._hmap, data)
         nf = len(self.free)
         K = sp.csr_matrix((data, self._indices, self._indptr), shape=(nf, nf))
         return E, g, K

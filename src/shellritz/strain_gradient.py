@@ -329,7 +329,7 @@ class DKTStrainGradient:
         # edge nodes: side 0's vertices (0, 1, 2 in its order), then side 1's opposite (3)
         opp1 = tri[h1 // 3, (k1 + 2) % 3]
         opp2 = tri[h2 // 3, (k2 + 2) % 3]
-        nodes4 = np.c_[tri[h1 // 3], opp2]
+        self.edge_nodes = nodes4 = np.ascontiguousarray(np.c_[tri[h1 // 3], opp2])
         self.edge_node = np.zeros((nE, 2, 3), np.int64)
         self.edge_node[:, 0] = np.arange(3)
         for i in range(3):
@@ -340,19 +340,18 @@ class DKTStrainGradient:
                 self.edge_local[np.arange(nE), self.edge_node[:, side, i], side] = i
         self._virtual = np.c_[opp1, opp2, a]
         self.edge_order, self.edge_colour_start = _colour(nodes4, mesh.n_nodes)
-        self.edge_oo = None
+        self.edge_oo = None            # set_pattern
         self.per_element = np.zeros(len(tri))
         self._RE = np.zeros(nE)
 
     def virtual_triangles(self):
         return self._virtual
 
-    def set_pattern(self, emap_virtual):
-        """Positions of the (opposite 1, opposite 2) DOF pairs from the element
-        map of the virtual triangles (local vertices 0, 1: packed index of the
-        entry (9 + b, a) is (9 + b)(10 + b)/2 + a)."""
-        b, a = np.meshgrid(np.arange(9), np.arange(9))
-        self.edge_oo = np.ascontiguousarray(emap_virtual[:, (9 + b) * (10 + b) // 2 + a])
+    def set_pattern(self, eoff_virtual):
+        """The block offsets of the (opposite 1, opposite 2) node pairs
+        (kernels/assembly.hessian_pattern) from those of the virtual
+        triangles (local vertices 0, 1)."""
+        self.edge_oo = np.ascontiguousarray(eoff_virtual[:, 0, 1])
 
     def add(self, mode, shell, U, Le, G, data):
         """Add R to the element energies Le, the gradient G (n, 3, 3) and the
@@ -361,11 +360,11 @@ class DKTStrainGradient:
         tri, X, T, G0 = shell.mesh.triangles, shell.X, shell.frames, shell._Gt0
         Re = self.per_element
         add_dkt_strain_gradient(mode, self.C, self.active, tri, X, T, U, G0, shell.bary, shell.wts,
-                                shell._order, shell._colour_start, shell._emap, Re, Le, G, data)
+                                shell._order, shell._colour_start, shell._hmap, Re, Le, G, data)
         add_dkt_edge_strain_gradient(mode, self.C, tri, X, T, U, G0, self.edge_tri, self.edge_lam,
                                      self.edge_w, self.edge_frame, self.edge_node, self.edge_local,
-                                     self.edge_oo, self.edge_order, self.edge_colour_start,
-                                     shell._emap, self._RE, G, data)
+                                     self.edge_nodes, self.edge_oo, self.edge_order,
+                                     self.edge_colour_start, shell._hmap, self._RE, G, data)
         half = 0.5 * self._RE
         for side in range(2):
             np.add.at(Re, self.edge_tri[:, side], half)

@@ -5,9 +5,11 @@ share no node; colour by colour, the elements of a colour run in parallel
 (chunks on threads, kernels/parallel.py, one scratch per chunk) and add
 their gradient and Hessian straight into the global arrays without races:
 no per-element matrices are stored.  The Hessian is the lower triangle of
-the free DOFs in a CSR pattern built once per mesh and constraint set;
-``emap[e, k]`` is the data position of the packed lower-triangle entry
-k = p (p + 1) / 2 + q (q <= p) of element e (-1: a fixed DOF).  Global DOFs of node n: U[n, s, c],
+the free DOFs in a CSR pattern built once per mesh and constraint set; the
+data position of an entry comes from the compact map ``hmap`` of
+hessian_pattern (add_block: a few integers per node and nine per
+element, where a table of the 378 entries of every element took 1.5 GB at
+1M triangles).  Global DOFs of node n: U[n, s, c],
 s = 0 position, 1 and 2 the derivatives along T_n1, T_n2; local DOF
 9 i + 3 s + c for the element's node i.
 """
@@ -353,10 +355,10 @@ def color_elements(tri, n_nodes):
 
 
 def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, wts, G0n, G1n,
-                 qp, qm, has_load, pf, zf, Y1, Y2, order, colour_start, emap, Le, G, data,
+                 qp, qm, has_load, pf, zf, Y1, Y2, order, colour_start, hmap, Le, G, data,
                  status):
     """Element energies Le (E); for mode >= 1 the gradient G (n, 3, 3), for
-    mode >= 2 the Hessian values data (positions emap), both overwritten.
+    mode >= 2 the Hessian values data (positions: hmap of hessian_pattern), both overwritten.
 
     order: the elements sorted by colour, colour c being
     order[colour_start[c]:colour_start[c + 1]] (see color_elements); the
@@ -375,12 +377,12 @@ def assemble_dkt(mode, level, kind, psi, params, h, regge, tri, X, T, U, bary, w
     for c in range(colour_start.shape[0] - 1):
         run_chunks(kernel, colour_start[c], colour_start[c + 1], mode, level, kind, psi, params,
                    h, tri, X, T, U, bary, wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2,
-                   order, emap, Le, G, data, status)
+                   order, hmap, Le, G, data, status)
 
 
 @njit(cache=True, nogil=True)
 def assemble_elements(lo, hi, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
-                      G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, emap, Le, G, data, status):
+                      G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, hmap, Le, G, data, status):
     """The elements order[lo:hi] (no two sharing a node) into Le, G, data,
     status (see assemble_dkt), DKT metric."""
     sc = new_scratch()
@@ -393,12 +395,12 @@ def assemble_elements(lo, hi, mode, level, kind, psi, params, h, tri, X, T, U, b
                                     wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, ge, ke, sc,
                                     wk)
         if status[e] == OK:
-            scatter_element(e, mode, tri, ge, ke, emap, G, data)
+            scatter_element(e, mode, tri, ge, ke, hmap, G, data)
 
 
 @njit(cache=True, nogil=True)
 def assemble_elements_regge(lo, hi, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts,
-                            G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, emap, Le, G, data,
+                            G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2, order, hmap, Le, G, data,
                             status):
     """assemble_elements with the assumed membrane metric (a separate kernel:
     scenes without it do not compile it)."""
@@ -413,7 +415,7 @@ def assemble_elements_regge(lo, hi, mode, level, kind, psi, params, h, tri, X, T
                                           bary, wts, G0n, G1n, qp, qm, has_load, pf, zf, Y1, Y2,
                                           ge, ke, sc, wk, rw)
         if status[e] == OK:
-            scatter_element(e, mode, tri, ge, ke, emap, G, data)
+            scatter_element(e, mode, tri, ge, ke, hmap, G, data)
 
 
 @njit(**KERNEL)
@@ -429,11 +431,40 @@ def zero_element(mode, ge, ke):
                 ke[p, q] = 0.0
 
 
+@njit(**KERNEL, inline="always")
+def add_block(hmap, ni, nj, off, M, nd, transposed, diag, scale, data):
+    """data += scale x the block between DOFs a < nd of node ni and b < nd of
+    node nj, whose value is M[b, a] if transposed else M[a, b]; off =
+    hmap[3][e, i, j] for an element e with those nodes as its local i, j
+    (the column offset of the pair in the rows of the later node;
+    hessian_pattern); diag (ni == nj): the entries b <= a only; fixed DOFs
+    are skipped.  The row's start is looked up once per row."""
+    indptr, fidx, rank = hmap[0], hmap[1], hmap[2]
+    if ni >= nj:                            # rows: the DOFs a of ni
+        for a in range(nd):
+            fr = fidx[ni, a]
+            if fr < 0:
+                continue
+            base = indptr[fr] + off
+            for b in range(a + 1 if diag else nd):
+                if fidx[nj, b] >= 0:
+                    data[base + rank[nj, b]] += scale * (M[b, a] if transposed else M[a, b])
+    else:                                   # rows: the DOFs b of nj
+        for b in range(nd):
+            fr = fidx[nj, b]
+            if fr < 0:
+                continue
+            base = indptr[fr] + off
+            for a in range(nd):
+                if fidx[ni, a] >= 0:
+                    data[base + rank[ni, a]] += scale * (M[b, a] if transposed else M[a, b])
+
+
 @njit(**KERNEL)
-def scatter_element(e, mode, tri, ge, ke, emap, G, data):
+def scatter_element(e, mode, tri, ge, ke, hmap, G, data):
     """Add element e's gradient ge (9, 3) to the nodal gradient G and (mode 2)
-    the upper triangle of its Hessian ke (27, 27) to the CSR data through
-    the element map emap (-1: a fixed DOF)."""
+    the upper triangle of its Hessian ke (27, 27) to the CSR data (positions:
+    hmap of hessian_pattern; fixed DOFs skipped)."""
     if mode >= 1:
         for i in range(3):
             nd = tri[e, i]
@@ -441,37 +472,33 @@ def scatter_element(e, mode, tri, ge, ke, emap, G, data):
                 for k in range(3):
                     G[nd, s, k] += ge[3 * i + s, k]
     if mode >= 2:
-        k = 0
-        for p in range(27):
-            for q in range(p + 1):
-                pos = emap[e, k]
-                if pos >= 0:
-                    data[pos] += ke[q, p]
-                k += 1
+        eoff = hmap[3]
+        for i in range(3):
+            for j in range(i + 1):
+                # entry (DOF a of node i, DOF b of node j), j <= i: ke[9 j + b, 9 i + a]
+                add_block(hmap, tri[e, i], tri[e, j], eoff[e, i, j],
+                          ke[9 * j:9 * j + 9, 9 * i:9 * i + 9], 9, True, i == j, 1.0, data)
 
 
 @njit(**KERNEL)
-def add_position_blocks(tri, HV, coef, emap, data):
+def add_position_blocks(tri, HV, coef, hmap, data):
     """data += coef HV on the position DOFs; HV[e, i, j] is the (3, 3) block
     between the positions of the element's nodes i and j (symmetric overall)."""
+    eoff = hmap[3]
     for e in range(tri.shape[0]):
         for i in range(3):
             for j in range(i + 1):
-                for a in range(3):
-                    p = 9 * i + a
-                    for b in range(3):
-                        q = 9 * j + b
-                        if q > p:
-                            continue
-                        pos = emap[e, p * (p + 1) // 2 + q]
-                        if pos >= 0:
-                            data[pos] += coef * HV[e, i, j, a, b]
+                add_block(hmap, tri[e, i], tri[e, j], eoff[e, i, j], HV[e, i, j], 3, False, i == j,
+                          coef, data)
 
 
 @njit(cache=True)
 def hessian_pattern(tri, free_index):
     """CSR pattern (indptr, indices) of the lower triangle of the Hessian on the
-    free DOFs, and the element map emap (E, 378) of the module docstring.
+    free DOFs, and the compact map hmap = (indptr, free_index, rank, eoff) of
+    add_block: rank[J, l] the free DOFs of node J before its DOF l,
+    eoff[e, i, j] the column offset, in the rows of the later of the nodes
+    tri[e, i], tri[e, j], of the other node's block.
 
     free_index (n, 9): free index of DOF k of node n (-1: fixed), increasing in
     (n, k).  Built node by node: row (I, a) holds the free DOFs of the nodes
@@ -543,22 +570,14 @@ def hessian_pattern(tri, free_index):
                     if free_index[J, l] >= 0:
                         indices[k] = free_index[J, l]
                         k += 1
-    emap = np.empty((ne, 378), np.int32)
+    eoff = np.empty((ne, 3, 3), np.int32)
     for e in range(ne):
-        k = 0
-        for p in range(27):
-            for q in range(p + 1):
-                ni, a = tri[e, p // 9], p % 9
-                nj, b = tri[e, q // 9], q % 9
-                fp, fq = free_index[ni, a], free_index[nj, b]
-                if fp < 0 or fq < 0:
-                    emap[e, k] = -1
-                else:
-                    if fp < fq:
-                        ni, a, nj, b, fp, fq = nj, b, ni, a, fq, fp
-                    s = nptr[ni]
-                    while nbr[s] != nj:
-                        s += 1
-                    emap[e, k] = indptr[fp] + offset[s] + rank[nj, b]
-                k += 1
-    return indptr.astype(np.int32), indices, emap     # int32: scipy's native index type
+        for i in range(3):
+            for j in range(3):
+                ni, nj = max(tri[e, i], tri[e, j]), min(tri[e, i], tri[e, j])
+                s = nptr[ni]
+                while nbr[s] != nj:
+                    s += 1
+                eoff[e, i, j] = offset[s]
+    indptr = indptr.astype(np.int32)                  # int32: scipy's native index type
+    return indptr, indices, (indptr, free_index, rank.astype(np.int32), eoff)

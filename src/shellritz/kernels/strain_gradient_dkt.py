@@ -32,7 +32,7 @@ from numba import njit
 from ..discretize.dkt import element_chart, gather_element, point_map
 from . import KERNEL
 from .parallel import run_chunks
-from .assembly import scatter_element, zero_element
+from .assembly import add_block, scatter_element, zero_element
 
 NP1 = 9           # blocks P0 (3) and P1 (6): first covariant derivatives
 NP2 = 18          # and P2 (9): second
@@ -458,19 +458,19 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
 
 
 def add_dkt_strain_gradient(mode, C, active, tri, X, T, U, G0n, bary, wts, order, colour_start,
-                            emap, Re, Le, G, data):
+                            hmap, Re, Le, G, data):
     """R_e of every active element into Re (overwritten; 0 elsewhere) and added to the element
     energies Le; for mode >= 1 the gradient added to G (n, 3, 3), for mode >= 2
-    the Hessian to data (the DKT assembly's CSR values, positions emap).
+    the Hessian to data (the DKT assembly's CSR values, positions hmap).
     Local DOF 9 i + 3 s + c of the element's node i is U[node, s, c], as in
     kernels/assembly.py; colours as there (no race), in parallel chunks."""
     for c in range(colour_start.shape[0] - 1):
         run_chunks(_add_elements, colour_start[c], colour_start[c + 1], mode, C, active, tri, X,
-                   T, U, G0n, bary, wts, order, emap, Re, Le, G, data)
+                   T, U, G0n, bary, wts, order, hmap, Re, Le, G, data)
 
 
 @njit(cache=True, nogil=True)
-def _add_elements(lo, hi, mode, C, active, tri, X, T, U, G0n, bary, wts, order, emap, Re, Le, G,
+def _add_elements(lo, hi, mode, C, active, tri, X, T, U, G0n, bary, wts, order, hmap, Re, Le, G,
                   data):
     """The elements order[lo:hi] of add_dkt_strain_gradient."""
     wk = _work()
@@ -483,7 +483,7 @@ def _add_elements(lo, hi, mode, C, active, tri, X, T, U, G0n, bary, wts, order, 
             continue
         Re[e] = element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk)
         Le[e] += Re[e]
-        scatter_element(e, mode, tri, ge, ke, emap, G, data)
+        scatter_element(e, mode, tri, ge, ke, hmap, G, data)
 
 
 # ---------------------------------------------------------------------------
@@ -601,24 +601,25 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
 
 
 def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w,
-                                 edge_frame, edge_node, edge_local, edge_oo, order, colour_start,
-                                 emap, RE, G, data):
+                                 edge_frame, edge_node, edge_local, edge_nodes, edge_oo, order,
+                                 colour_start, hmap, RE, G, data):
     """The edge terms into RE (per edge, overwritten), G (n, 3, 3) and data.
     edge_local[j, A, s]: local index of edge node A in the triangle of side s
-    (-1: not in it); edge_oo[j, a, b]: data position of DOF a of the first
-    side's opposite vertex and DOF b of the second's (-1: fixed).  Edges are
-    coloured (no shared node within a colour), in parallel chunks."""
+    (-1: not in it); edge_nodes[j, A]: its node; edge_oo[j]: the block offset
+    of the two opposite vertices (hmap: kernels/assembly.hessian_pattern).
+    Edges are coloured (no shared node within a colour), in parallel chunks."""
     for c in range(colour_start.shape[0] - 1):
         run_chunks(_add_edges, colour_start[c], colour_start[c + 1], mode, C, tri, X, T, U, G0n,
-                   edge_tri, edge_lam, edge_w, edge_frame, edge_node, edge_local, edge_oo, order,
-                   emap, RE, G, data)
+                   edge_tri, edge_lam, edge_w, edge_frame, edge_node, edge_local, edge_nodes,
+                   edge_oo, order, hmap, RE, G, data)
 
 
 @njit(cache=True, nogil=True)
 def _add_edges(lo, hi, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w, edge_frame,
-               edge_node, edge_local, edge_oo, order, emap, RE, G, data):
+               edge_node, edge_local, edge_nodes, edge_oo, order, hmap, RE, G, data):
     """The edges order[lo:hi] of add_dkt_edge_strain_gradient."""
     ew = _edge_work()
+    eoff = hmap[3]
     for jo in range(lo, hi):
         j = order[jo]
         RE[j] = edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam,
@@ -633,21 +634,13 @@ def _add_edges(lo, hi, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w, e
                             G[nd, k, cc] += gs[s, 3 * i + k, cc]
         if mode >= 2:
             Hn = ew[3]
-            for P1 in range(36):
-                A, a = P1 // 9, P1 % 9
-                for P2 in range(P1 + 1):
-                    B, b = P2 // 9, P2 % 9
-                    found = False
-                    pos = -1
+            for A in range(4):
+                for B in range(A + 1):
+                    off = edge_oo[j]               # the two opposite vertices (A = 3 > B)
                     for s in range(2):
                         la, lb = edge_local[j, A, s], edge_local[j, B, s]
-                        if not found and la >= 0 and lb >= 0:
-                            p, q = 9 * la + a, 9 * lb + b
-                            if p < q:
-                                p, q = q, p
-                            pos = emap[edge_tri[j, s], p * (p + 1) // 2 + q]
-                            found = True
-                    if not found:      # the two opposite vertices (A = 3 > B)
-                        pos = edge_oo[j, b, a]
-                    if pos >= 0:
-                        data[pos] += Hn[P1, P2]
+                        if la >= 0 and lb >= 0:
+                            off = eoff[edge_tri[j, s], la, lb]
+                            break
+                    add_block(hmap, edge_nodes[j, A], edge_nodes[j, B], off,
+                              Hn[9 * A:9 * A + 9, 9 * B:9 * B + 9], 9, False, A == B, 1.0, data)
