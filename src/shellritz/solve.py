@@ -208,10 +208,7 @@ class _Linear:
         number of negative eigenvalues (None: unknown) and the set-up time.
         exact_inertia: in double precision (DirectSolver.factorize)."""
         t0 = time.perf_counter()
-        # the free rigid motions of the current state (rotations turn with it)
-        layout = self.problem.block_layout() if hasattr(self.problem, "block_layout") else None
-        self.rigid = free_rigid_modes(layout)
-        self.project = projector(self.rigid)
+        layout = self._rigid_motions()
         if self.solver is None:
             self.solver = self._new_solver(self.opts.linear, K, self.opts.factor_precision, layout)
             self.history.linear = self.solver.name
@@ -225,6 +222,14 @@ class _Linear:
             self.note_lean_hierarchy()
         self.history.factorizations += 1
         return negative, time.perf_counter() - t0
+
+    def _rigid_motions(self):
+        """Set the free rigid motions of the current state (rotations turn
+        with it) and their projector; returns the problem's block layout."""
+        layout = self.problem.block_layout() if hasattr(self.problem, "block_layout") else None
+        self.rigid = free_rigid_modes(layout)
+        self.project = projector(self.rigid)
+        return layout
 
     def note_lean_hierarchy(self):
         """A history note (and a line with verbose) when the AMG hierarchy
@@ -256,7 +261,10 @@ class _Linear:
         self.history.notes.append(f"AMG: {why}; falling back to the direct solver '{method}'")
         if self.opts.verbose:
             print(f"    AMG: {why}; falling back to '{method}'", flush=True)
-        self.solver.release()
+        if self.solver is not None:
+            self.solver.release()
+        else:
+            self._rigid_motions()          # (a first solver: regularized for free bodies)
         self.solver = self._new_solver(method, K, self.opts.factor_precision)
         self.history.linear = f"amg->{method}"
         return self.factorize(K)
@@ -1065,9 +1073,12 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
     ds_max = opts.arc_max_ds or 4 * ds
     x = problem.free_state()
     E, _, K = problem.evaluate(x, 2)
-    if lin.solver is None or lin.direct:       # (None: the start needed no Newton step)
+    # (no solver yet: the start needed no Newton step; none is built for nothing)
+    amg = (not lin.direct if lin.solver is not None
+           else resolve_method(opts.linear, len(x), hasattr(problem, "block_layout")) == "amg")
+    if not amg:
         negative, _ = lin.factorize(K)
-    if not lin.direct:
+    else:
         # the corrector's bordered solves and the inertia that tells limit
         # from bifurcation points need a factorization: AMG (chosen, or by
         # "auto" on a large mesh) gives way to the direct solver where its

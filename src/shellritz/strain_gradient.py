@@ -329,7 +329,7 @@ class DKTStrainGradient:
         # edge nodes: side 0's vertices (0, 1, 2 in its order), then side 1's opposite (3)
         opp1 = tri[h1 // 3, (k1 + 2) % 3]
         opp2 = tri[h2 // 3, (k2 + 2) % 3]
-        self.edge_nodes = nodes4 = np.ascontiguousarray(np.c_[tri[h1 // 3], opp2])
+        nodes4 = np.c_[tri[h1 // 3], opp2]
         self.edge_node = np.zeros((nE, 2, 3), np.int64)
         self.edge_node[:, 0] = np.arange(3)
         for i in range(3):
@@ -363,8 +363,8 @@ class DKTStrainGradient:
                                 shell._order, shell._colour_start, shell._hmap, Re, Le, G, data)
         add_dkt_edge_strain_gradient(mode, self.C, tri, X, T, U, G0, self.edge_tri, self.edge_lam,
                                      self.edge_w, self.edge_frame, self.edge_node, self.edge_local,
-                                     self.edge_nodes, self.edge_oo, self.edge_order,
-                                     self.edge_colour_start, shell._hmap, self._RE, G, data)
+                                     self.edge_oo, self.edge_order, self.edge_colour_start,
+                                     shell._hmap, self._RE, G, data)
         half = 0.5 * self._RE
         for side in range(2):
             np.add.at(Re, self.edge_tri[:, side], half)

@@ -600,23 +600,30 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
     return RE
 
 
+@njit(**KERNEL, inline="always")
+def _edge_node_id(j, A, tri, edge_tri, edge_local):
+    """The node of edge node A of interior edge j (from a side that has it)."""
+    s = 0 if edge_local[j, A, 0] >= 0 else 1
+    return tri[edge_tri[j, s], edge_local[j, A, s]]
+
+
 def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w,
-                                 edge_frame, edge_node, edge_local, edge_nodes, edge_oo, order,
-                                 colour_start, hmap, RE, G, data):
+                                 edge_frame, edge_node, edge_local, edge_oo, order, colour_start,
+                                 hmap, RE, G, data):
     """The edge terms into RE (per edge, overwritten), G (n, 3, 3) and data.
     edge_local[j, A, s]: local index of edge node A in the triangle of side s
-    (-1: not in it); edge_nodes[j, A]: its node; edge_oo[j]: the block offset
-    of the two opposite vertices (hmap: kernels/assembly.hessian_pattern).
+    (-1: not in it); edge_oo[j]: the block offset of the two opposite
+    vertices (hmap: kernels/assembly.hessian_pattern).
     Edges are coloured (no shared node within a colour), in parallel chunks."""
     for c in range(colour_start.shape[0] - 1):
         run_chunks(_add_edges, colour_start[c], colour_start[c + 1], mode, C, tri, X, T, U, G0n,
-                   edge_tri, edge_lam, edge_w, edge_frame, edge_node, edge_local, edge_nodes,
-                   edge_oo, order, hmap, RE, G, data)
+                   edge_tri, edge_lam, edge_w, edge_frame, edge_node, edge_local, edge_oo, order,
+                   hmap, RE, G, data)
 
 
 @njit(cache=True, nogil=True)
 def _add_edges(lo, hi, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w, edge_frame,
-               edge_node, edge_local, edge_nodes, edge_oo, order, hmap, RE, G, data):
+               edge_node, edge_local, edge_oo, order, hmap, RE, G, data):
     """The edges order[lo:hi] of add_dkt_edge_strain_gradient."""
     ew = _edge_work()
     eoff = hmap[3]
@@ -642,5 +649,6 @@ def _add_edges(lo, hi, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w, e
                         if la >= 0 and lb >= 0:
                             off = eoff[edge_tri[j, s], la, lb]
                             break
-                    add_block(hmap, edge_nodes[j, A], edge_nodes[j, B], off,
+                    add_block(hmap, _edge_node_id(j, A, tri, edge_tri, edge_local),
+                              _edge_node_id(j, B, tri, edge_tri, edge_local), off,
                               Hn[9 * A:9 * A + 9, 9 * B:9 * B + 9], 9, False, A == B, 1.0, data)
