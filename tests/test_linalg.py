@@ -567,7 +567,7 @@ def test_amg_restriction_is_p_transposed_without_a_copy_and_coarse_solve_is_dire
 
 def test_prolongation_smoothing_uses_the_spectral_radius_of_the_jacobi_operator():
     """The prolongation smoother's weight omega / rho: rho, the spectral
-    radius of D^-1 A (Lanczos on D^-1/2 A D^-1/2), within 1e-3 of the dense
+    radius of D^-1 A (Lanczos on D^-1/2 A D^-1/2), within 1e-2 of the dense
     eigenvalues' on a plate's AMG operator (a Ritz value: from below),
     and far below the row-sum bound of the 'local' weighting it replaced."""
     import shellritz.linalg as linalg
@@ -578,7 +578,7 @@ def test_prolongation_smoothing_uses_the_spectral_radius_of_the_jacobi_operator(
     dinv = 1.0 / A.diagonal()
     exact = np.abs(np.linalg.eigvals(dinv[:, None] * A.toarray())).max()
     rho = linalg._spectral_radius(A, dinv)
-    assert exact * (1 - 1e-3) <= rho <= exact * (1 + 1e-12)
+    assert exact * (1 - 1e-2) <= rho <= exact * (1 + 1e-12)
     rowsums = np.abs(A.toarray()).sum(axis=1) * dinv       # observed: median 22 against rho 2.33
     assert np.median(rowsums) > 5 * rho
 
