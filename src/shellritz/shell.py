@@ -652,29 +652,21 @@ class Shell(Solvable):
         """Nodal blocks: (9, free DOFs in the full numbering, 9 n, callable ->
         the six rigid-body modes of the current state (9 n, 6): translations,
         and rotations acting on positions and both tangent derivatives;
-        callable -> the near null space for AMG: the rigid modes and the
-        bending modes, normal displacements q_i q_j n quadratic in the
-        centred coordinates q (the softest modes of a thin shell after the
+        callable -> the near null space for AMG: the rigid modes and six
+        bending modes, normal displacements c_i c_j n quadratic in the
+        centred coordinates c (the softest modes of a thin shell after the
         rigid ones: with them smoothed aggregation needs 15 instead of 32 CG
         iterations on the 12k-triangle leaf, 54 instead of 124 at 50k), and,
-        where the strain-gradient term is on (elements shorter than h), the
-        fields that term leaves free, displacements linear and quadratic in q
-        (the term, R = C |grad grad eps|^2, makes the operator of sixth order
-        at the mesh scale, whose coarse spaces must carry them): homogeneous
-        strains S q (S symmetric; default leaf, CG to 1e-8 on the Hessian at
-        the solution, three levels: 40 -> 37 iterations at 50k triangles,
-        59 -> 38 at 100k) and, on a planar reference, the in-plane quadratic
-        displacements q_i q_j e_k (reference stiffness of the leaf with
-        h/l = 3.6: 55 -> 34 at 12k triangles, 58 -> 39 at 50k; README
-        "Scaling").  q: the 3D coordinates (6 monomials), or on a planar
-        reference the 2 coordinates in its plane (3 monomials; the
-        normal-coordinate monomials and strains vanish there, so the same
-        18 vectors hold the 6 in-plane quadratics instead).  Columns in order
-        of importance (rigid, bending, strains, in-plane quadratics): where
-        memory is short, AMG keeps the first twelve (AMGSolver,
-        AMG_LEAN_NEAR_NULL)."""
+        where the strain-gradient term is on (elements shorter than h), six
+        homogeneous strains, displacements S c with S symmetric (no strain
+        gradient: the term, R = C |grad grad eps|^2, makes the operator of
+        sixth order at the mesh scale, and the coarse spaces must then
+        carry linear displacement fields; default leaf, CG to 1e-8 on the
+        Hessian at the solution, three levels: 40 -> 37 iterations at 50k
+        triangles, 59 -> 38 at 100k, README "Scaling")); the columns in
+        that order (rigid, bending, strains): where memory is short, AMG
+        keeps the first twelve (AMGSolver, AMG_LEAN_NEAR_NULL)."""
         n = self.mesh.n_nodes
-        axes = self._plane_axes()
 
         def rigid_modes():
             B = np.zeros((n, 3, 3, 6))
@@ -689,44 +681,27 @@ class Shell(Solvable):
             nrm = np.cross(a1, a2)
             nrm /= np.linalg.norm(nrm, axis=1)[:, None]
             size = max(np.abs(r - r.mean(axis=0)).max(), 1e-300)
-            q = (r - r.mean(axis=0)) / size @ axes.T         # (n, d): d = 3, or 2 in-plane
-            d = len(axes)
-            pairs = [(i, i) for i in range(d)] + [(i, j) for i in range(d) for j in range(i + 1, d)]
-            # the monomials q_i q_j and their gradients d(q_i q_j)/dr
-            monomials = [(q[:, i] * q[:, j], (np.outer(q[:, j], axes[i]) + np.outer(q[:, i], axes[j])) / size)
-                         for i, j in pairs]
-
-            def field(value, direction, grad):
-                """The displacement value * direction, with its tangent
-                derivatives (grad . a_alpha) direction."""
+            c = (r - r.mean(axis=0)) / size
+            modes, strains = [rigid_modes()], []
+            for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)):
+                grad = np.zeros_like(c)            # d(c_i c_j)/dr
+                grad[:, i] += c[:, j] / size
+                grad[:, j] += c[:, i] / size
                 B = np.empty((n, 3, 3))
-                B[:, 0] = value[:, None] * direction
-                B[:, 1] = (grad * a1).sum(axis=1)[:, None] * direction
-                B[:, 2] = (grad * a2).sum(axis=1)[:, None] * direction
-                return B.reshape(9 * n, 1)
-
-            modes = [rigid_modes()] + [field(v, nrm, g) for v, g in monomials]
-            if self.strain_gradient is not None:
-                for i, j in pairs:                 # S q, S = sym(e_i e_j^T): S r / size, S a
-                    S = 0.5 * (np.outer(axes[i], axes[j]) + np.outer(axes[j], axes[i]))
+                B[:, 0] = (c[:, i] * c[:, j])[:, None] * nrm
+                B[:, 1] = (grad * a1).sum(axis=1)[:, None] * nrm
+                B[:, 2] = (grad * a2).sum(axis=1)[:, None] * nrm
+                modes.append(B.reshape(9 * n, 1))
+                if self.strain_gradient is not None:
+                    S = np.zeros((3, 3))
+                    S[i, j] = S[j, i] = 1.0
                     B = np.empty((n, 3, 3))
-                    B[:, 0] = (r - r.mean(axis=0)) @ S / size
+                    B[:, 0] = c @ S                          # S c (S symmetric)
                     B[:, 1] = a1 @ S / size
                     B[:, 2] = a2 @ S / size
-                    modes.append(B.reshape(9 * n, 1))
-                if len(axes) == 2:
-                    modes += [field(v, e, g) for e in axes for v, g in monomials]
-            return np.hstack(modes)
+                    strains.append(B.reshape(9 * n, 1))
+            return np.hstack(modes + strains)      # in order of importance (AMGSolver may cut)
         return 9, self.free, 9 * n, rigid_modes, near_null
-
-    def _plane_axes(self):
-        """Orthonormal axes (2, 3) of the reference's plane if the reference
-        surface is planar (nodes within 1e-9 of its size of a plane), else
-        the identity (3, 3): the coordinates of the AMG near null space."""
-        Xc = self.X - self.X.mean(axis=0)
-        _, _, vt = np.linalg.svd(Xc, full_matrices=False)
-        planar = np.abs(Xc @ vt[2]).max() <= 1e-9 * max(np.abs(Xc).max(), 1e-300)
-        return vt[:2].copy() if planar else np.eye(3)
 
     def _node_positions(self, nodes):
         return self.U[nodes, 0]
