@@ -1,0 +1,96 @@
+"""What the AMG preconditioner's CG iterations depend on: the mesh size or
+the ratio of the thickness to the element length, h/l (issue 10: "Krylov
+iterations per Newton step growing at most logarithmically").
+
+Refining the default leaf (h = 0.02) raises h/l with the mesh (1.8 at 50k
+triangles, 3.3 at 199k, 7 at 1M); where elements are shorter than h the
+strain-gradient term (R = C |grad grad eps|^2) makes the operator of sixth
+order at the mesh scale.  This benchmark keeps the two apart: the leaf
+(meshes/leaf.toml) on shapes.disc(rings) with its thickness set to
+h = ratio / rings (rings ~ 1 / l), and on its reference stiffness (the
+Hessian at the flat reference state, t = 0: no solve needed, symmetric
+positive semi-definite with the six rigid modes) the measure of
+bench/amg_cg.py: CG to a relative residual of 1e-8, one W-cycle of
+shellritz's AMG hierarchy per iteration, free rigid motions projected out.
+
+Rows: rings, n_triangles, dofs, h, h_over_l, strain_gradient (the term
+on), cg_its, reason, setup_s, cg_s, levels, coarsest_blocks.  The file
+also keeps ``before``: the same measure with the code of commit 539d236
+(2026-12-05: prolongation smoothing weighted by the row sums of |A|),
+copied from that run.
+Writes bench/results/amg_thickness_ratio.json (rows of the cases run
+replace those of the same rings and ratio).
+Run:  python bench/amg_thickness_ratio.py [--rings 45 91 129] [--ratios 0.5 1.8 3.6 7.3]
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+THREADS = 2
+
+CHILD = r"""
+import json, sys
+from importlib.resources import files
+from amg_cg import amg_cg_iterations
+from shellritz import shapes
+from shellritz.meshdata import Surface
+from shellritz.scenefile import load_scene
+rings, ratio = int(sys.argv[1]), float(sys.argv[2])
+scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+shell = scene.build(Surface(shapes.disc(rings)), thickness=ratio / rings)[0]
+shell._setup()                   # the engine's set-up (solve does it), then the reference state at t = 0
+shell.set_parameter(0.0)
+x = shell.free_state()
+_, _, K = shell.evaluate(x, 2)
+m = amg_cg_iterations(K, shell.block_layout())
+print("ROW " + json.dumps(dict(rings=rings, n_triangles=int(shell.mesh.n_triangles), dofs=int(len(x)),
+                               h=ratio / rings, h_over_l=ratio,
+                               strain_gradient=shell.strain_gradient is not None,
+                               cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"], cg_s=m["cg_s"],
+                               levels=m["levels"], coarsest_blocks=m["coarsest_blocks"])), flush=True)
+"""
+
+# commit 539d236, the same measure (2026-12-05, 2 threads, one run each)
+BEFORE = [dict(rings=45, n_triangles=12150, h_over_l=0.5, cg_its=24),
+          dict(rings=45, n_triangles=12150, h_over_l=1.8, cg_its=23),
+          dict(rings=45, n_triangles=12150, h_over_l=3.6, cg_its=55),
+          dict(rings=45, n_triangles=12150, h_over_l=7.3, cg_its=186),
+          dict(rings=91, n_triangles=49686, h_over_l=1.8, cg_its=28),
+          dict(rings=91, n_triangles=49686, h_over_l=3.6, cg_its=58)]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rings", type=int, nargs="+", default=[45, 91, 129])
+    ap.add_argument("--ratios", type=float, nargs="+", default=[0.5, 1.8, 3.6, 7.3])
+    args = ap.parse_args()
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
+               MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
+    sys.path.insert(0, str(HERE))
+    from machine import machine_info
+    RESULTS.mkdir(exist_ok=True)
+    path = RESULTS / "amg_thickness_ratio.json"
+    rows = json.loads(path.read_text())["rows"] if path.exists() else []
+    for rings in args.rings:
+        for ratio in args.ratios:
+            out = subprocess.run([sys.executable, "-c", CHILD, str(rings), str(ratio)], env=env,
+                                 capture_output=True, text=True)
+            got = [json.loads(line[4:]) for line in out.stdout.splitlines() if line.startswith("ROW ")]
+            if not got:
+                got = [dict(rings=rings, h_over_l=ratio, error=out.stderr.strip().splitlines()[-1:])]
+            print(json.dumps(got[0]), flush=True)
+            rows = [r for r in rows if (r["rings"], r["h_over_l"]) != (rings, ratio)] + got
+            path.write_text(json.dumps(
+                {"benchmark": "AMG CG iterations to 1e-8 on the leaf's reference stiffness against h/l",
+                 "threads": THREADS, "machine": machine_info(), "rows": rows,
+                 "before": {"commit": "539d236", "rows": BEFORE}}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
