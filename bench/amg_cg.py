@@ -1,12 +1,21 @@
 """The AMG preconditioner's quality apart from the Newton forcing terms
 (which set a different CG tolerance per step), shared by bench/scaling.py
-(amg_cg_1e8_*) and bench/amg_growth.py: CG to a relative residual of 1e-8
-for a fixed random right side (free rigid motions projected out), one
-W-cycle of shellritz's AMG hierarchy per iteration."""
+(amg_cg_1e8_*), bench/amg_growth.py and bench/amg_thickness_ratio.py: CG
+to a relative residual of 1e-8 for a fixed random right side (free rigid
+motions projected out), one W-cycle of shellritz's AMG hierarchy per
+iteration; and the fresh 2-thread process each case of the last two runs
+in (child_rows)."""
 
+import json
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+THREADS = 2
 
 
 def amg_cg_iterations(K, layout, finest=None, options=None):
@@ -38,3 +47,15 @@ def amg_cg_iterations(K, layout, finest=None, options=None):
                cg_s=time.perf_counter() - t, levels=len(amg._ml.levels), coarsest_blocks=int(blocks))
     amg.release()
     return out
+
+
+def child_rows(code, *args):
+    """Run the Python source ``code`` with ``args`` in a fresh process on
+    THREADS threads (bench/ on its path); returns the rows it printed as
+    ``ROW {json}`` lines and the last line of its error output."""
+    here = Path(__file__).resolve().parent
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
+               MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(here))
+    out = subprocess.run([sys.executable, "-c", code, *map(str, args)], env=env, capture_output=True, text=True)
+    rows = [json.loads(line[4:]) for line in out.stdout.splitlines() if line.startswith("ROW ")]
+    return rows, out.stderr.strip().splitlines()[-1:]

@@ -33,14 +33,11 @@ Run:  python bench/amg_growth.py [--rings 45 91 129] [--thickness 0.02 0.005]
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
-THREADS = 2
 
 CHILD = r"""
 import json, sys
@@ -87,20 +84,17 @@ def main():
     ap.add_argument("--rings", type=int, nargs="+", default=[45, 91, 129])
     ap.add_argument("--thickness", type=float, nargs="+", default=[0.02, 0.005])
     args = ap.parse_args()
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
-               MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
     sys.path.insert(0, str(HERE))
+    from amg_cg import THREADS, child_rows
     from machine import machine_info
     RESULTS.mkdir(exist_ok=True)
     path = RESULTS / "amg_growth.json"
     rows = json.loads(path.read_text())["rows"] if path.exists() else []
     for h in args.thickness:
         for rings in args.rings:
-            out = subprocess.run([sys.executable, "-c", CHILD, str(rings), str(h)], env=env,
-                                 capture_output=True, text=True)
-            got = [json.loads(line[4:]) for line in out.stdout.splitlines() if line.startswith("ROW ")]
+            got, error = child_rows(CHILD, rings, h)
             if not got:
-                got = [dict(h=h, rings=rings, variant="full", error=out.stderr.strip().splitlines()[-1:])]
+                got = [dict(h=h, rings=rings, variant="full", error=error)]
             for r in got:
                 print(json.dumps(r), flush=True)
             rows = [r for r in rows if (r["h"], r["rings"]) != (h, rings)] + got

@@ -25,14 +25,11 @@ Run:  python bench/amg_thickness_ratio.py [--rings 45 91 129] [--ratios 0.5 1.8 
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
-THREADS = 2
 
 CHILD = r"""
 import json, sys
@@ -70,20 +67,17 @@ def main():
     ap.add_argument("--rings", type=int, nargs="+", default=[45, 91, 129])
     ap.add_argument("--ratios", type=float, nargs="+", default=[0.5, 1.8, 3.6, 7.3])
     args = ap.parse_args()
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
-               MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(HERE))
     sys.path.insert(0, str(HERE))
+    from amg_cg import THREADS, child_rows
     from machine import machine_info
     RESULTS.mkdir(exist_ok=True)
     path = RESULTS / "amg_thickness_ratio.json"
     rows = json.loads(path.read_text())["rows"] if path.exists() else []
     for rings in args.rings:
         for ratio in args.ratios:
-            out = subprocess.run([sys.executable, "-c", CHILD, str(rings), str(ratio)], env=env,
-                                 capture_output=True, text=True)
-            got = [json.loads(line[4:]) for line in out.stdout.splitlines() if line.startswith("ROW ")]
+            got, error = child_rows(CHILD, rings, ratio)
             if not got:
-                got = [dict(rings=rings, h_over_l=ratio, error=out.stderr.strip().splitlines()[-1:])]
+                got = [dict(rings=rings, h_over_l=ratio, error=error)]
             print(json.dumps(got[0]), flush=True)
             rows = [r for r in rows if (r["rings"], r["h_over_l"]) != (rings, ratio)] + got
             path.write_text(json.dumps(
