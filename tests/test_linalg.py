@@ -569,6 +569,12 @@ def test_prolongation_smoothing_uses_the_spectral_radius_of_the_jacobi_operator(
     assert exact * (1 - 1e-2) <= rho <= exact * (1 + 1e-12)
     rowsums = np.abs(A.toarray()).sum(axis=1) * dinv       # observed: median 22 against rho 2.33
     assert np.median(rowsums) > 5 * rho
+    # nothing to smooth with (a zero operator): rho = 0 and P = T, no NaN
+    Z = A.copy()
+    Z.data[:] = 0.0
+    T = sp.bsr_matrix(np.kron(np.eye(A.shape[0] // 9), np.ones((9, 1))), blocksize=(9, 1))
+    P = linalg._smoothed_prolongator(Z, T, 4 / 3)
+    assert np.array_equal(P.toarray(), T.toarray())
 
 
 def test_amg_setup_is_pyamgs_smoothed_aggregation_without_its_temporaries(monkeypatch):

@@ -728,7 +728,9 @@ def _smoothed_prolongator(A, T, omega):
     Hessian at its solution: 38 -> 27 iterations; README "Scaling")."""
     d = A.diagonal()
     dinv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 0.0)
-    scale = -(omega / _spectral_radius(A, dinv)) * dinv
+    rho = _spectral_radius(A, dinv)
+    # rho = 0: nothing to smooth with (D^-1 A = 0); P = T
+    scale = -(omega / rho) * dinv if rho > 0 else np.zeros_like(dinv)
     AT = (A @ T).tobsr(blocksize=T.blocksize)
     AT.sort_indices()
     T.sort_indices()
@@ -744,8 +746,15 @@ def _spectral_radius(A, dinv):
     s = np.sqrt(dinv)
     op = spla.LinearOperator(A.shape, matvec=lambda x: s * (A @ (s * x.ravel())), dtype=np.float64)
     v0 = np.random.default_rng(0).standard_normal(A.shape[0])
-    return float(np.abs(spla.eigsh(op, k=1, which="LM", tol=1e-2, ncv=12, v0=v0,
-                                   return_eigenvectors=False)).max())
+    if not op.matvec(v0).any():                   # D^-1 A = 0 (ARPACK refuses it)
+        return 0.0
+    try:
+        lam = spla.eigsh(op, k=1, which="LM", tol=1e-2, ncv=min(12, A.shape[0] - 1), v0=v0,
+                         return_eigenvectors=False)
+    except spla.ArpackNoConvergence as exc:       # its best Ritz value (a lower bound), or none
+        lam = exc.eigenvalues
+    rho = float(np.abs(lam).max()) if len(lam) else 0.0
+    return rho if np.isfinite(rho) else 0.0
 
 
 @nb.njit(cache=True)
