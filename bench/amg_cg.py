@@ -4,7 +4,7 @@
 to a relative residual of 1e-8 for a fixed random right side (free rigid
 motions projected out), one W-cycle of shellritz's AMG hierarchy per
 iteration; and the fresh 2-thread process each case of the last two runs
-in (child_rows)."""
+in (run_cases)."""
 
 import json
 import os
@@ -49,13 +49,26 @@ def amg_cg_iterations(K, layout, finest=None, options=None):
     return out
 
 
-def child_rows(code, *args):
-    """Run the Python source ``code`` with ``args`` in a fresh process on
-    THREADS threads (bench/ on its path); returns the rows it printed as
-    ``ROW {json}`` lines and the last line of its error output."""
-    here = Path(__file__).resolve().parent
+def run_cases(path, benchmark, code, cases, extra=None):
+    """Each case (a dict of the child's arguments, in order) in a fresh
+    process on THREADS threads (bench/ on its path) running the Python
+    source ``code``, which prints its rows as ``ROW {json}`` lines (none: a
+    row of the case with the last line of its error output); they replace
+    the rows of ``path`` (JSON) that have the case's values, and the file
+    is written after every case (a long run stopped early keeps what it
+    measured), with the machine and ``extra``."""
+    from machine import machine_info
     env = dict(os.environ, NUMBA_NUM_THREADS=str(THREADS), OMP_NUM_THREADS=str(THREADS),
-               MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(here))
-    out = subprocess.run([sys.executable, "-c", code, *map(str, args)], env=env, capture_output=True, text=True)
-    rows = [json.loads(line[4:]) for line in out.stdout.splitlines() if line.startswith("ROW ")]
-    return rows, out.stderr.strip().splitlines()[-1:]
+               MKL_NUM_THREADS=str(THREADS), PYTHONPATH=str(Path(__file__).resolve().parent))
+    path.parent.mkdir(exist_ok=True)
+    rows = json.loads(path.read_text())["rows"] if path.exists() else []
+    for case in cases:
+        out = subprocess.run([sys.executable, "-c", code, *map(str, case.values())], env=env,
+                             capture_output=True, text=True)
+        got = ([json.loads(line[4:]) for line in out.stdout.splitlines() if line.startswith("ROW ")]
+               or [dict(case, error=out.stderr.strip().splitlines()[-1:])])
+        for r in got:
+            print(json.dumps(r), flush=True)
+        rows = [r for r in rows if any(r.get(k) != v for k, v in case.items())] + got
+        path.write_text(json.dumps({"benchmark": benchmark, "threads": THREADS, "machine": machine_info(),
+                                    "rows": rows, **(extra or {})}, indent=2))

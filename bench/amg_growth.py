@@ -32,7 +32,6 @@ Run:  python bench/amg_growth.py [--rings 45 91 129] [--thickness 0.02 0.005]
 """
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -85,23 +84,9 @@ def main():
     ap.add_argument("--thickness", type=float, nargs="+", default=[0.02, 0.005])
     args = ap.parse_args()
     sys.path.insert(0, str(HERE))
-    from amg_cg import THREADS, child_rows
-    from machine import machine_info
-    RESULTS.mkdir(exist_ok=True)
-    path = RESULTS / "amg_growth.json"
-    rows = json.loads(path.read_text())["rows"] if path.exists() else []
-    for h in args.thickness:
-        for rings in args.rings:
-            got, error = child_rows(CHILD, rings, h)
-            if not got:
-                got = [dict(h=h, rings=rings, variant="full", error=error)]
-            for r in got:
-                print(json.dumps(r), flush=True)
-            rows = [r for r in rows if (r["h"], r["rings"]) != (h, rings)] + got
-            # written after every case: a long run stopped early keeps what it measured
-            path.write_text(json.dumps(
-                {"benchmark": "AMG CG iterations to 1e-8 on the leaf Hessian at the solution",
-                 "threads": THREADS, "machine": machine_info(), "rows": rows}, indent=2))
+    from amg_cg import run_cases
+    run_cases(RESULTS / "amg_growth.json", "AMG CG iterations to 1e-8 on the leaf Hessian at the solution",
+              CHILD, [dict(rings=rings, h=h) for h in args.thickness for rings in args.rings])
 
 
 if __name__ == "__main__":

@@ -24,7 +24,6 @@ Run:  python bench/amg_thickness_ratio.py [--rings 45 91 129] [--ratios 0.5 1.8 
 """
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -68,22 +67,11 @@ def main():
     ap.add_argument("--ratios", type=float, nargs="+", default=[0.5, 1.8, 3.6, 7.3])
     args = ap.parse_args()
     sys.path.insert(0, str(HERE))
-    from amg_cg import THREADS, child_rows
-    from machine import machine_info
-    RESULTS.mkdir(exist_ok=True)
-    path = RESULTS / "amg_thickness_ratio.json"
-    rows = json.loads(path.read_text())["rows"] if path.exists() else []
-    for rings in args.rings:
-        for ratio in args.ratios:
-            got, error = child_rows(CHILD, rings, ratio)
-            if not got:
-                got = [dict(rings=rings, h_over_l=ratio, error=error)]
-            print(json.dumps(got[0]), flush=True)
-            rows = [r for r in rows if (r["rings"], r["h_over_l"]) != (rings, ratio)] + got
-            path.write_text(json.dumps(
-                {"benchmark": "AMG CG iterations to 1e-8 on the leaf's reference stiffness against h/l",
-                 "threads": THREADS, "machine": machine_info(), "rows": rows,
-                 "before": {"commit": "539d236", "rows": BEFORE}}, indent=2))
+    from amg_cg import run_cases
+    run_cases(RESULTS / "amg_thickness_ratio.json",
+              "AMG CG iterations to 1e-8 on the leaf's reference stiffness against h/l", CHILD,
+              [dict(rings=rings, h_over_l=ratio) for rings in args.rings for ratio in args.ratios],
+              extra={"before": {"commit": "539d236", "rows": BEFORE}})
 
 
 if __name__ == "__main__":
