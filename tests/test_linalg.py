@@ -116,33 +116,6 @@ def test_pardiso_slots_share_one_analysis(monkeypatch):
 
 
 @needs_pardiso
-@pytest.mark.parametrize("limit", [0, 100])
-def test_pardiso_runs_on_one_mkl_thread_below_the_size_limit(limit, monkeypatch):
-    """Below PARDISO_ONE_THREAD_DOFS every PARDISO call runs on one MKL
-    thread of the calling thread and restores its setting after; at and
-    above it MKL's setting is left alone."""
-    from shellritz import linalg
-    monkeypatch.setattr(linalg, "PARDISO_ONE_THREAD_DOFS", limit)
-    A = random_symmetric(10, np.linspace(1.0, 3.0, 10), seed=3)
-    solver, K = direct("pardiso", A)
-    mkl = solver._slots[0].handle._ps.libmkl
-    seen = []
-    ps = solver._slots[0].handle._ps
-    inner = ps._mkl_pardiso
-
-    def spy(*args):
-        seen.append(mkl.MKL_Get_Max_Threads())
-        return inner(*args)
-    monkeypatch.setattr(ps, "_mkl_pardiso", spy)
-    before = mkl.MKL_Get_Max_Threads()
-    assert solver.factorize(K) == 0
-    np.testing.assert_allclose(solver.solve(np.ones(10)), np.linalg.solve(A, np.ones(10)), rtol=1e-10)
-    assert len(seen) == 3 and mkl.MKL_Get_Max_Threads() == before
-    assert seen == ([1, 1, 1] if limit > 10 else [before] * 3)
-    solver.release()
-
-
-@needs_pardiso
 @pytest.mark.parametrize("n_negative", [0, 2])
 def test_single_precision_factor_refined_solves_and_double_inertia(n_negative):
     """factor_precision 'single': the factor is single precision (one

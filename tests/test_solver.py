@@ -334,6 +334,38 @@ def test_a_solve_frees_its_factorizations(monkeypatch, method):
     assert all(not s.handle.analysed for s in slots) if method == "pardiso" else all(s._lu is None for s in slots)
 
 
+def test_openblas_runs_on_one_thread_while_solving_and_is_restored_after(monkeypatch):
+    """OpenBLAS's idle threads busy-wait about 0.1 s after each call, taking
+    a core from the assembly and PARDISO (solve.continuation): during a
+    solve every OpenBLAS the process has loaded runs on one thread, after it
+    (converged or not) on as many as before.  MKL (PARDISO) is left alone."""
+    from threadpoolctl import threadpool_info
+
+    def openblas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "openblas"]
+    def mkl_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "mkl"]
+    before = openblas_threads()
+    if not before or max(before) < 2:
+        pytest.skip("no multi-threaded OpenBLAS loaded")
+    seen = []
+    shell, _ = cantilever(4, 1)
+    evaluate = shell.evaluate
+
+    def spy(x, mode):
+        if mode == 2:                      # Newton's (the result's own energy comes after)
+            seen.append((openblas_threads(), mkl_threads()))
+        return evaluate(x, mode)
+    monkeypatch.setattr(shell, "evaluate", spy)
+    shell.solve(steps=2, verbose=False)
+    assert seen and all(o == [1] * len(before) for o, _ in seen)
+    assert all(m in ([], mkl_threads()) for _, m in seen)     # MKL: loaded at the first factorization
+    assert openblas_threads() == before
+    with pytest.raises(SolveError):
+        shell.solve(steps=1, verbose=False, max_iter=1, min_dt=0.5)
+    assert openblas_threads() == before
+
+
 # ------------------------------------------------------------------- AMG
 def test_amg_gives_the_direct_solution_and_falls_back_when_cg_stalls(cantilever_default):
     res, tip = cantilever_default

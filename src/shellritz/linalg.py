@@ -190,13 +190,6 @@ def symmetric_from_lower(K):
 
 
 # --------------------------------------------------------------------- direct
-# PARDISO runs on one MKL thread for matrices of fewer DOFs than this: a
-# second thread doubled the CPU time and did not shorten the wall time of a
-# factorization at any size measured (2 threads, leaf Hessians at the flat
-# start; 1 / 2 threads: 7k DOFs 17 / 19 ms, 56k 0.32 / 0.40 s, 226k 6.2 /
-# 6.0 s; Sze cantilever at 24k DOFs 33 / 54 ms; solves alike), so the small
-# and medium ones, whose factorizations are short, keep it on one.
-PARDISO_ONE_THREAD_DOFS = 100_000
 
 
 class _PardisoHandle:
@@ -243,21 +236,15 @@ class _PardisoHandle:
         x = np.zeros_like(b)
         error = ctypes.c_int32(0)
         int_p = ctypes.POINTER(ctypes.c_int32)
-        # one MKL thread for this call (this Python thread only) below PARDISO_ONE_THREAD_DOFS
-        previous = ps.libmkl.MKL_Set_Num_Threads_Local(1) if self.n < PARDISO_ONE_THREAD_DOFS else None
-        try:
-            ps._mkl_pardiso(ps.pt.ctypes.data_as(ctypes.POINTER(ps._pt_type[0])),
-                            ctypes.byref(ctypes.c_int32(self.factors)), ctypes.byref(ctypes.c_int32(mnum)),
-                            ctypes.byref(ctypes.c_int32(-2)), ctypes.byref(ctypes.c_int32(phase)),
-                            ctypes.byref(ctypes.c_int32(self.n)), data.ctypes.data_as(ctypes.c_void_p),
-                            self._ia.ctypes.data_as(int_p), self._ja.ctypes.data_as(int_p),
-                            ps.perm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(b.shape[1])),
-                            ps.iparm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(0)),
-                            b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p),
-                            ctypes.byref(error))
-        finally:
-            if previous is not None:
-                ps.libmkl.MKL_Set_Num_Threads_Local(previous)
+        ps._mkl_pardiso(ps.pt.ctypes.data_as(ctypes.POINTER(ps._pt_type[0])),
+                        ctypes.byref(ctypes.c_int32(self.factors)), ctypes.byref(ctypes.c_int32(mnum)),
+                        ctypes.byref(ctypes.c_int32(-2)), ctypes.byref(ctypes.c_int32(phase)),
+                        ctypes.byref(ctypes.c_int32(self.n)), data.ctypes.data_as(ctypes.c_void_p),
+                        self._ia.ctypes.data_as(int_p), self._ja.ctypes.data_as(int_p),
+                        ps.perm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(b.shape[1])),
+                        ps.iparm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(0)),
+                        b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p),
+                        ctypes.byref(error))
         if error.value != 0:
             raise LinearSolverError(f"PARDISO phase {phase} failed ({PyPardisoError(error.value)})")
         return x

@@ -876,12 +876,20 @@ def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0, force_sc
     to, at least (besides the loads and the gradient where each step
     starts): for a start carried over from another mesh, that of the
     reference state (its own gradient is already small)."""
+    from threadpoolctl import ThreadpoolController
     opts = opts or SolverOptions()
     history = SolveHistory()
     problem = _Counted(problem, history)
     lin = _Linear(problem, opts, history)
+    # OpenBLAS (NumPy's, SciPy's) on one thread while solving: its idle
+    # worker threads busy-wait about 0.1 s after every call (OpenBLAS's
+    # THREAD_TIMEOUT), taking a core from the assembly's threads and
+    # PARDISO's that run next (Sze cantilever, 5,120 triangles: a PARDISO
+    # factorization 93 ms inside the solve against 42 ms alone; the solve
+    # 20 -> 15 s); the solver's dense algebra is vectors and thin blocks
     try:
-        return _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scale)
+        with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
+            return _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scale)
     finally:
         lin.release()
 
