@@ -1,0 +1,200 @@
+"""Is the AMG smoother what makes CG slow where elements are shorter than
+the thickness?  A prototype study (the smoothers here are not in the
+product; issue 10: "Krylov iterations per Newton step growing at most
+logarithmically", and the default leaf at 1M triangles, h/l = 8.2).
+
+bench/amg_thickness_ratio.py showed that on the leaf's reference stiffness
+the CG iterations of shellritz's AMG follow h/l, the thickness over the
+element length (12k triangles: 12 at h/l = 1.8, 44 at 3.6, 136 at 7.3),
+not the mesh size.  Here the same measure (bench/amg_cg.py: CG to a relative
+residual of 1e-8, one W-cycle per iteration, the leaf on shapes.disc(rings)
+with h = ratio / rings, its Hessian at the flat reference) with the finest
+level's smoother replaced, the rest of the hierarchy unchanged:
+
+* ``block-gs``: the product's (two symmetric block Gauss-Seidel sweeps on
+  the 9 x 9 nodal blocks);
+* ``aggregates``: one symmetric multiplicative sweep of exact solves on
+  the DOFs of each aggregate of the finest level (non-overlapping blocks of
+  about ten nodes);
+* ``pairs``: the same on every pair of nodes coupled in the Hessian
+  (overlapping, 18 x 18);
+* ``ring``: on each node with its mesh neighbours (overlapping
+  Schwarz, about 7 nodes, 63 x 63);
+* ``row``: on each node with every node its Hessian row couples (the
+  strain-gradient term also couples the opposite vertices of the
+  neighbouring triangles: about 13 nodes);
+* ``strong``: on each node with its strongly coupled nodes (the strength
+  graph of the aggregation, symmetric strength with the product's theta:
+  a purely algebraic patch).
+
+Rows: rings, n_triangles, h_over_l, smoother, cg_its, reason, setup_s
+(hierarchy and smoother), cg_s, smoother_gb (the dense patch inverses, in
+double precision), levels.  Writes bench/results/amg_smoother.json.
+Run:  python bench/amg_smoother.py [--rings 45 91] [--ratios 3.6 7.3]
+      [--smoothers block-gs aggregates pairs ring row]
+"""
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+SMOOTHERS = ("block-gs", "aggregates", "pairs", "ring", "row", "strong")
+
+
+@nb.njit(cache=True)
+def patch_inverses(indptr, indices, data, patch_ptr, patch_nodes):
+    """The pseudo-inverse of A restricted to the DOFs of each patch (its
+    nodes sorted), flattened; A the BSR (indptr, indices, data (k, m, m))."""
+    m = data.shape[1]
+    n = len(patch_ptr) - 1
+    inv_ptr = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        inv_ptr[i + 1] = inv_ptr[i] + ((patch_ptr[i + 1] - patch_ptr[i]) * m) ** 2
+    inv = np.empty(inv_ptr[n])
+    for i in range(n):
+        nodes = patch_nodes[patch_ptr[i]:patch_ptr[i + 1]]
+        k = len(nodes)
+        M = np.zeros((k * m, k * m))
+        for a in range(k):
+            for q in range(indptr[nodes[a]], indptr[nodes[a] + 1]):
+                b = np.searchsorted(nodes, indices[q])
+                if b < k and nodes[b] == indices[q]:
+                    M[a * m:(a + 1) * m, b * m:(b + 1) * m] = data[q]
+        inv[inv_ptr[i]:inv_ptr[i + 1]] = np.linalg.pinv(M).ravel()
+    return inv_ptr, inv
+
+
+@nb.njit(cache=True)
+def schwarz_sweep(indptr, indices, data, patch_ptr, patch_nodes, inv_ptr, inv, x, b):
+    """One symmetric multiplicative Schwarz sweep on A x = b (x in place):
+    patch by patch, forward then backward, x_P += A_PP^+ (b - A x)_P."""
+    m = data.shape[1]
+    n = len(patch_ptr) - 1
+    for s in range(2):
+        for step in range(n):
+            i = step if s == 0 else n - 1 - step
+            k = patch_ptr[i + 1] - patch_ptr[i]
+            r = np.empty(k * m)
+            for a in range(k):
+                p = patch_nodes[patch_ptr[i] + a]
+                for c in range(m):
+                    r[a * m + c] = b[p * m + c]
+                for q in range(indptr[p], indptr[p + 1]):
+                    j = indices[q]
+                    for c in range(m):
+                        acc = 0.0
+                        for d in range(m):
+                            acc += data[q, c, d] * x[j * m + d]
+                        r[a * m + c] -= acc
+            size = k * m
+            base = inv_ptr[i]
+            for a in range(k):
+                p = patch_nodes[patch_ptr[i] + a]
+                for c in range(m):
+                    row = base + (a * m + c) * size
+                    acc = 0.0
+                    for col in range(size):
+                        acc += inv[row + col] * r[col]
+                    x[p * m + c] += acc
+
+
+def patches(kind, A, triangles, theta):
+    """(patch_ptr, patch_nodes) of the smoother ``kind`` on the BSR A."""
+    n = A.shape[0] // A.blocksize[0]
+    if kind == "aggregates":
+        from pyamg.aggregation import standard_aggregation
+        from pyamg.strength import symmetric_strength_of_connection
+        agg = standard_aggregation(symmetric_strength_of_connection(A, theta=theta))[0].tocsc()
+        groups = [np.sort(agg.indices[agg.indptr[c]:agg.indptr[c + 1]]) for c in range(agg.shape[1])]
+    elif kind == "pairs":
+        rows = np.repeat(np.arange(n), np.diff(A.indptr))
+        groups = [np.array([i, j]) for i, j in zip(rows, A.indices) if j > i]
+    elif kind == "ring":
+        ring = [{i} for i in range(n)]
+        for tri in triangles:
+            for u in tri:
+                ring[u].update(int(v) for v in tri)
+        groups = [np.array(sorted(r)) for r in ring]
+    elif kind == "row":
+        groups = [np.sort(A.indices[A.indptr[i]:A.indptr[i + 1]]) for i in range(n)]
+    elif kind == "strong":
+        from pyamg.strength import symmetric_strength_of_connection
+        C = symmetric_strength_of_connection(A, theta=theta).tocsr()
+        groups = [np.union1d(C.indices[C.indptr[i]:C.indptr[i + 1]], [i]) for i in range(n)]
+    else:
+        raise ValueError(kind)
+    ptr = np.concatenate([[0], np.cumsum([len(g) for g in groups])]).astype(np.int64)
+    return ptr, np.concatenate(groups).astype(np.int64)
+
+
+def install(kind, triangles, record):
+    """Replace the finest level's smoother of the hierarchies built from now
+    on (linalg._smooth) by the patch smoother ``kind``; ``record`` gets its
+    set-up time and memory."""
+    from shellritz import linalg
+    product = linalg._smooth
+
+    def smooth(level, A, single):
+        product(level, A, single)
+        if not single:                     # coarser levels: the product's
+            return
+        data = np.asarray(A.data, dtype=np.float64)
+        t = time.perf_counter()
+        ptr, nodes = patches(kind, A, triangles, linalg.AMG_STRENGTH_THETA)
+        inv_ptr, inv = patch_inverses(A.indptr, A.indices, data, ptr, nodes)
+        record.update(smoother_setup_s=time.perf_counter() - t, smoother_gb=inv.nbytes / 1e9)
+
+        def smoother(_, x, b):
+            schwarz_sweep(A.indptr, A.indices, data, ptr, nodes, inv_ptr, inv, x, b)
+        level.presmoother = level.postsmoother = smoother
+    linalg._smooth = smooth
+
+
+CHILD = r"""
+import json, sys
+from importlib.resources import files
+from amg_cg import amg_cg_iterations
+from amg_smoother import install
+from shellritz import linalg, shapes
+from shellritz.meshdata import Surface
+from shellritz.scenefile import load_scene
+rings, ratio, kind = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
+scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+shell = scene.build(Surface(shapes.disc(rings)), thickness=ratio / rings)[0]
+shell._setup()
+shell.set_parameter(0.0)
+x = shell.free_state()
+_, _, K = shell.evaluate(x, 2)
+record = dict(smoother_setup_s=0.0, smoother_gb=0.0)
+if kind != "block-gs":
+    install(kind, shell.mesh.triangles, record)
+linalg._available_memory = lambda: 1e12      # the full 18-vector hierarchy in every case
+m = amg_cg_iterations(K, shell.block_layout())
+print("ROW " + json.dumps(dict(rings=rings, n_triangles=int(shell.mesh.n_triangles), h_over_l=ratio,
+                               smoother=kind, cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"],
+                               cg_s=m["cg_s"], levels=m["levels"], **record)), flush=True)
+"""
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rings", type=int, nargs="+", default=[45, 91])
+    ap.add_argument("--ratios", type=float, nargs="+", default=[3.6, 7.3])
+    ap.add_argument("--smoothers", nargs="+", default=list(SMOOTHERS), choices=SMOOTHERS)
+    args = ap.parse_args()
+    sys.path.insert(0, str(HERE))
+    from amg_cg import run_cases
+    run_cases(RESULTS / "amg_smoother.json",
+              "AMG CG iterations to 1e-8 on the leaf's reference stiffness: finest-level smoothers", CHILD,
+              [dict(rings=rings, h_over_l=ratio, smoother=kind)
+               for rings in args.rings for ratio in args.ratios for kind in args.smoothers])
+
+
+if __name__ == "__main__":
+    main()
