@@ -31,7 +31,7 @@ Rows: rings, n_triangles, h_over_l, smoother, cg_its, reason, setup_s
 (hierarchy and smoother), cg_s, smoother_gb (the dense patch inverses, in
 double precision), levels.  Writes bench/results/amg_smoother.json.
 Run:  python bench/amg_smoother.py [--rings 45 91] [--ratios 3.6 7.3]
-      [--smoothers block-gs aggregates pairs ring row]
+      [--smoothers block-gs aggregates pairs ring row strong]
 """
 
 import argparse

@@ -341,11 +341,9 @@ def test_openblas_runs_on_one_thread_while_solving_and_is_restored_after(monkeyp
     (converged or not) on as many as before.  MKL (PARDISO) is left alone."""
     from threadpoolctl import threadpool_info
 
-    def openblas_threads():
-        return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "openblas"]
-    def mkl_threads():
-        return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "mkl"]
-    before = openblas_threads()
+    def threads(api):
+        return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == api]
+    before = threads("openblas")
     if not before or max(before) < 2:
         pytest.skip("no multi-threaded OpenBLAS loaded")
     seen = []
@@ -354,16 +352,16 @@ def test_openblas_runs_on_one_thread_while_solving_and_is_restored_after(monkeyp
 
     def spy(x, mode):
         if mode == 2:                      # Newton's (the result's own energy comes after)
-            seen.append((openblas_threads(), mkl_threads()))
+            seen.append((threads("openblas"), threads("mkl")))
         return evaluate(x, mode)
     monkeypatch.setattr(shell, "evaluate", spy)
     shell.solve(steps=2, verbose=False)
     assert seen and all(o == [1] * len(before) for o, _ in seen)
-    assert all(m in ([], mkl_threads()) for _, m in seen)     # MKL: loaded at the first factorization
-    assert openblas_threads() == before
+    assert all(m in ([], threads("mkl")) for _, m in seen)     # MKL: loaded at the first factorization
+    assert threads("openblas") == before
     with pytest.raises(SolveError):
         shell.solve(steps=1, verbose=False, max_iter=1, min_dt=0.5)
-    assert openblas_threads() == before
+    assert threads("openblas") == before
 
 
 # ------------------------------------------------------------------- AMG
