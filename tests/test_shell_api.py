@@ -12,6 +12,7 @@ import scipy.sparse as sp
 from scipy.optimize import brentq
 
 from shellritz import (EvaluationError, NeoHookean, Shell, SolveError, shapes)
+from shellritz.scenes import leaf
 from shellritz.model import evaluate_point
 
 LAW = NeoHookean(1.0, nu=0.3)
@@ -161,3 +162,36 @@ def test_inverted_elements_are_named():
     s.Y1[..., 2] = 1.0                   # directors continued from the reference side
     with pytest.raises(EvaluationError, match=r"element \d+ \(nodes \[.*4.*\]\): inverted"):
         s.evaluate(s.free_state(), 0)
+
+
+def test_the_result_energy_is_the_last_evaluation_where_that_was_of_the_final_state(monkeypatch):
+    """Shell.final_energy (Result.energy, and the per-element arrays the
+    validity check reads) takes the last evaluation where it was of the
+    current state and parameter, else evaluates: after a solve no
+    evaluation and the energy of a fresh one (to round-off of the directors'
+    warm start); after a move, a change of t, or a failed evaluation
+    (partly overwritten element arrays), one."""
+    res = leaf(8).solve(verbose=False)
+    s = res.shell
+    calls = []
+    evaluate = Shell.evaluate
+    monkeypatch.setattr(Shell, "evaluate", lambda self, x, mode: calls.append(mode) or evaluate(self, x, mode))
+    assert s.final_energy() == res.energy and not calls
+    assert res.energy == pytest.approx(s.evaluate(s.free_state(), 0)[0], rel=1e-13, abs=0)
+    x = s.free_state()
+    s.evaluate(1.001 * x, 1)                       # a trial elsewhere
+    calls.clear()
+    assert s.final_energy() == pytest.approx(res.energy, rel=1e-13, abs=0) and calls == [0]
+    s.set_parameter(0.5)
+    calls.clear()
+    s.final_energy()
+    assert calls == [0]
+    s.set_parameter(1.0)
+    s.final_energy()
+    U = s.U.copy()
+    s.U[0, 0] += [2.0, 0.5, 0.0]                   # node 0 through its neighbours
+    with pytest.raises(EvaluationError):
+        s.evaluate(s.free_state(), 0)
+    s.U[:] = U
+    calls.clear()
+    assert s.final_energy() == pytest.approx(res.energy, rel=1e-13, abs=0) and calls == [0]

@@ -215,22 +215,33 @@ def test_fast_newton_steps_reuse_the_previous_factorization(monkeypatch):
     """Once a full Newton step on a positive definite Hessian cuts |g|
     tenfold, the next step is solved by CG preconditioned by the previous
     factorization (reuse_factorization="always"; "auto" does so from
-    REUSE_MIN_DOFS = 150k free DOFs on, large meshes).
-    16-ring leaf: the last two Newton steps reuse it, 16 -> 14
-    factorizations, 67 -> 81 CG iterations, the same 17 Newton iterations
-    and the same equilibrium (energy to 2e-14).  (Without the predicted
-    last step, which saves one factorization of its own where the
-    factorizations are not reused: 15 then.)"""
+    REUSE_MIN_DOFS = 150k free DOFs on, large meshes), as an inexact
+    Newton step; the Hessian of the equilibrium, not factorized then, is
+    assessed by LOBPCG preconditioned by the last factorization instead of a
+    factorization of its own.
+    16-ring leaf: the last two Newton steps reuse it (8 CG iterations each),
+    15 -> 13 factorizations (the stability inertia's is the second),
+    67 -> 81 CG iterations, the same 17 Newton iterations and the same
+    equilibrium (energy to 2e-14); its lowest eigenvalues by LOBPCG
+    (4.253e-9, 4.267e-9, 4.80e-9) are those of the run with a factorization
+    at the equilibrium (stability="eigen": 4.261e-9, 4.269e-9) to 2e-3 (a
+    nearly double pair; LOBPCG's residual tolerance 1e-8).
+    (Without the predicted last step, which saves one factorization of its
+    own where the factorizations are not reused.)"""
     from shellritz import solve as solve_module
     monkeypatch.setattr(solve_module, "CONVERGED_MARGIN", 0.0)
-    never = leaf(16).solve(verbose=False, reuse_factorization="never").history
+    never = leaf(16).solve(verbose=False, reuse_factorization="never", stability="eigen").history
     always = leaf(16).solve(verbose=False, reuse_factorization="always").history
     reused = [it for it in always.iterations if it.negative is None]
     assert len(reused) >= 2 and all(it.krylov_exit == "converged" for it in reused)
     assert always.factorizations <= never.factorizations - 2
     assert len(always.iterations) == len(never.iterations)
     assert always.iterations[-1].energy == pytest.approx(never.iterations[-1].energy, rel=1e-12)
-    assert always.stable and not always.notes
+    assert always.stable and never.stable and not never.notes
+    assert always.notes == ["t=1: stability from the lowest eigenvalues (LOBPCG preconditioned by "
+                            "the factorization of an earlier Hessian)"]
+    assert min(never.lowest_eigenvalues) > 0
+    assert always.lowest_eigenvalues[:2] == pytest.approx(never.lowest_eigenvalues, rel=5e-3)
 
 
 def test_a_failed_reuse_still_lets_the_last_newton_step_be_predicted(monkeypatch):
