@@ -444,16 +444,22 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
         if mode < 2:
             continue
         _weighted_M(N_T, N_BASIS, val, wk)
+        # Gauss-Newton part sum_t dval_t dval_t^T as axpys over contiguous
+        # rows (upper triangle), then the second-derivative part 2 Mw (x) I3
+        D = dval.reshape((16, 27))
         for p in range(27):
-            kp, jp = p // 3, p % 3
-            for q in range(p, 27):
-                kq, jq = q // 3, q % 3
-                s = 0.0
-                for t in range(N_T):
-                    s += dval[t, kp, jp] * dval[t, kq, jq]
-                if jp == jq:
-                    s += 2.0 * Mw[kp, kq]
-                ke[p, q] += 2.0 * w * s
+            kep = ke[p]
+            for t in range(N_T):
+                a = 2.0 * w * D[t, p]
+                if a != 0.0:
+                    Dt = D[t]
+                    for q in range(p, 27):
+                        kep[q] += a * Dt[q]
+        for kp in range(9):
+            for kq in range(kp, 9):
+                m = 4.0 * w * Mw[kp, kq]
+                for j in range(3):
+                    ke[3 * kp + j, 3 * kq + j] += m
     return Re
 
 
