@@ -760,10 +760,20 @@ def _line_search(problem, x, p, E, gnorm, slope, opts, noise):
 
 
 # ------------------------------------------------------------------ stability
+# LOBPCG's residual tolerance, relative to max |diag K|: a thin shell's
+# lowest eigenvalues are far below its largest entries (the leaf: 4e-10 to
+# 4e-9 of max |diag| 0.2), and an absolute 1e-8 left residuals as large as
+# the lowest eigenvalue (32-ring leaf: 4.7e-10 at 4.0e-10): no sign.  With
+# 1e-12 relative, 13-14 instead of 7-8 iterations (preconditioned by a
+# nearby factorization), residuals 1e-14.
+EIGEN_RTOL = 1e-12
+
+
 def lowest_eigenpairs(lin, K, count):
     """The ``count`` algebraically smallest eigenpairs of K (lower CSR) by
     LOBPCG, preconditioned by the solver's SPD preconditioner (the last
-    positive definite factorization, or AMG)."""
+    positive definite factorization, or AMG), and their residual norms
+    |K v - w v| (|v| = 1): an eigenvalue of K lies within each of its Ritz value."""
     n = K.shape[0]
     count = max(1, min(count, n - 1))
     matvec = lower_matvec(K)
@@ -773,31 +783,46 @@ def lowest_eigenpairs(lin, K, count):
     rng = np.random.default_rng(0)
     X = rng.standard_normal((n, count + 2))
     # the free rigid motions (zero eigenvalues) are excluded
-    w, V = spla.lobpcg(A, X, M=M, Y=lin.rigid, largest=False, tol=1e-8, maxiter=200)
+    tol = EIGEN_RTOL * max(np.abs(K.diagonal()).max(), 1e-300)
+    w, V = spla.lobpcg(A, X, M=M, Y=lin.rigid, largest=False, tol=tol, maxiter=200)
     order = np.argsort(w)
-    return w[order][:count], V[:, order][:, :count]
+    w, V = w[order][:count], V[:, order][:, :count]
+    residuals = np.linalg.norm(matvec(V) - V * w, axis=0)
+    return w, V, residuals
 
 
 def assess_stability(problem, K, opts, history, lin, t, inertia=None):
     """Inertia (and eigenpairs on request) of the Hessian K at a converged
     state.  Returns the most unstable mode (or None).  inertia: that of the
     solver's current factorization, a double-precision one of K (None: K is
-    factorized here)."""
+    factorized here, or, where the last Newton step reused a factorization,
+    its lowest eigenvalue by LOBPCG decides where its residual gives the sign)."""
     if K.shape[0] == 0:
         return None
     negative = inertia
     mode = opts.stability
+    history.modes = None
     if (negative is None and mode != "off" and lin.direct and not lin.solver.single
             and lin.solver.K is not K and lin.may_reuse(opts, K.shape[0])):
         # K is not factorized (the last Newton step reused an earlier
         # factorization) where factorizations are reused: LOBPCG
-        # preconditioned by the last one finds the lowest eigenvalues
-        # (the 100k leaf: 3.7 s against a factorization of 22 s)
-        history.notes.append(f"t={t:.4g}: stability from the lowest eigenvalues (LOBPCG "
-                             "preconditioned by the factorization of an earlier Hessian)")
+        # preconditioned by the last one finds the lowest eigenvalue (the
+        # 100k leaf: a few seconds against a factorization of 22 s) and
+        # decides where its residual gives its sign: positive, stable;
+        # negative, the lowest eigenpairs below; open, a factorization
+        w, _, res = lowest_eigenpairs(lin, K, 1)
+        if abs(w[0]) > res[0]:
+            history.notes.append(f"t={t:.4g}: stability from the lowest eigenvalue (LOBPCG "
+                                 "preconditioned by the factorization of an earlier Hessian)")
+            if w[0] > 0:
+                negative = 0
+                history.lowest_eigenvalues = [float(w[0])]
+        else:
+            history.notes.append(f"t={t:.4g}: LOBPCG left the sign of the lowest eigenvalue open "
+                                 f"({w[0]:.3e}, residual {res[0]:.3e}); inertia from a factorization")
+            negative, _ = lin.factorize(K, exact_inertia=True)
     elif negative is None:
         negative, _ = lin.factorize(K, exact_inertia=True)   # inertia (direct); AMG: preconditioner set-up
-    history.modes = None
     if mode == "auto":
         mode = "inertia" if lin.direct else "off"
     if mode == "off":
@@ -806,7 +831,10 @@ def assess_stability(problem, K, opts, history, lin, t, inertia=None):
     vec = None
     if mode == "eigen" or negative is None or negative:
         count = 3 if negative is None else max(negative, 1) + 1
-        w, V = lowest_eigenpairs(lin, K, min(count, 12))
+        w, V, res = lowest_eigenpairs(lin, K, min(count, 12))
+        if negative is None and abs(w[0]) <= res[0]:
+            history.notes.append(f"t={t:.4g}: the sign of the lowest eigenvalue is open "
+                                 f"({w[0]:.3e}, LOBPCG residual {res[0]:.3e})")
         history.lowest_eigenvalues = [float(v) for v in w]
         # pivots of exact null modes (a free rigid motion) come out with
         # either sign: count an eigenvalue as negative only above round-off
