@@ -575,3 +575,33 @@ def test_thickness_path_checks_its_input_and_keeps_a_failed_stage():
     with pytest.raises(SolveError, match=r"thickness continuation, stage h = 0.02") as info:
         shell.solve(verbose=False, thickness_path=[0.02], max_iter=1, min_dt=0.25)
     assert info.value.result is not None and info.value.history.thickness_stages == []
+
+
+def test_a_negative_lowest_eigenvalue_by_lobpcg_gets_the_lowest_eigenpairs():
+    """assess_stability on a Hessian K1 that was not factorized, with the
+    factorization of a nearby positive definite K0 (a reused step): K1 =
+    K0 - 3 e e^T on a chain stiffness has one negative eigenvalue; the
+    lowest eigenvalue by LOBPCG is negative beyond its residual, so the
+    lowest eigenpairs are computed and the state is reported unstable with
+    its one mode (the eigenvector of K1's negative eigenvalue)."""
+    import scipy.sparse as sp
+    from shellritz.solve import SolveHistory, SolverOptions, _Linear, assess_stability
+    n = 60
+    K0 = sp.diags([np.full(n, 2.0), np.full(n - 1, -0.5)], [0, -1], format="csr")   # lower triangle
+    e = np.zeros(n)
+    e[n // 2] = 1.0
+    K1 = (K0 - sp.diags(3.0 * e * e, 0)).tocsr()
+    K1.sort_indices()
+    opts = SolverOptions(reuse_factorization="always", verbose=False)
+    history = SolveHistory()
+    lin = _Linear(object(), opts, history)
+    assert lin.factorize(K0)[0] == 0
+    mode = assess_stability(object(), K1, opts, history, lin, 1.0)
+    full = (K1 + sp.tril(K1, -1).T).toarray()
+    w = np.linalg.eigvalsh(full)
+    assert w[0] < 0 < w[1]
+    assert history.notes[0].startswith("t=1: stability from the lowest eigenvalue (LOBPCG")
+    assert history.stable is False and history.unstable_modes == 1
+    assert history.lowest_eigenvalues[0] == pytest.approx(w[0], rel=1e-8)
+    assert history.factorizations == 1                  # K0's only
+    assert np.linalg.norm(full @ mode - w[0] * mode) <= 1e-8 * np.linalg.norm(mode)
