@@ -42,8 +42,9 @@ after the first starts from the cubic Hermite extrapolation through the
 last two equilibria and their tangents dx/dt = -K^-1 dg/dt (_predict).
 At every converged
 state the inertia of the Hessian is known from its factorization (where
-the last step reused an earlier factorization, the lowest eigenvalues by
-LOBPCG preconditioned by it instead: assess_stability); an
+the last step reused an earlier factorization, the lowest eigenvalue by
+LOBPCG preconditioned by it, where its residual decides the sign:
+assess_stability); an
 unstable equilibrium is reported with its lowest eigenvalues and, by
 default, left along its most unstable mode to a stable state.
 """
@@ -325,10 +326,11 @@ TRUST_SHRINK = 0.5
 SLOW_NEWTON = 10
 # the last Newton step of a load step is predicted where quadratic
 # convergence (|g| falling like |g_k|^3 / |g_(k-1)|^2 after a full Newton step
-# that cut it tenfold, plus the step's CG residual eta |g_k|) puts |g| at x + p below this fraction of the
-# tolerance: x + p gets a gradient but no Hessian, and where |g| is below
-# the tolerance the Hessian at x (factorized already, unless the step reused
-# an earlier factorization) stands for that of the equilibrium (stability
+# that cut it tenfold, plus the step's CG residual eta |g_k|) puts |g| at
+# x + p below this fraction of the tolerance: x + p gets a gradient but no
+# Hessian, and where |g| is below the tolerance the Hessian at x (factorized
+# already, unless the step reused an earlier factorization: then LOBPCG,
+# assess_stability) stands for that of the equilibrium (stability
 # inertia, tangent predictor): one Hessian assembly, and one factorization,
 # fewer per load step so ended; a prediction that misses costs one gradient
 # (Sze cantilever, 10 equal steps: 7 of them end so, 6 miss: 53 -> 46
