@@ -775,7 +775,8 @@ def lowest_eigenpairs(lin, K, count):
     """The ``count`` algebraically smallest eigenpairs of K (lower CSR) by
     LOBPCG, preconditioned by the solver's SPD preconditioner (the last
     positive definite factorization, or AMG), and their residual norms
-    |K v - w v| (|v| = 1): an eigenvalue of K lies within each of its Ritz value."""
+    |K v - w v| (|v| = 1): an eigenvalue of K lies within the residual of
+    each Ritz value w."""
     n = K.shape[0]
     count = max(1, min(count, n - 1))
     matvec = lower_matvec(K)
@@ -804,6 +805,7 @@ def assess_stability(problem, K, opts, history, lin, t, inertia=None):
     negative = inertia
     mode = opts.stability
     history.modes = None
+    decided = False             # the sign of K's lowest eigenvalue is known without its inertia
     if (negative is None and mode != "off" and lin.direct and not lin.solver.single
             and lin.solver.K is not K and lin.may_reuse(opts, K.shape[0])):
         # K is not factorized (the last Newton step reused an earlier
@@ -813,7 +815,8 @@ def assess_stability(problem, K, opts, history, lin, t, inertia=None):
         # decides where its residual gives its sign: positive, stable;
         # negative, the lowest eigenpairs below; open, a factorization
         w, _, res = lowest_eigenpairs(lin, K, 1)
-        if abs(w[0]) > res[0]:
+        decided = abs(w[0]) > res[0]
+        if decided:
             history.notes.append(f"t={t:.4g}: stability from the lowest eigenvalue (LOBPCG "
                                  "preconditioned by the factorization of an earlier Hessian)")
             if w[0] > 0:
@@ -822,8 +825,7 @@ def assess_stability(problem, K, opts, history, lin, t, inertia=None):
         else:
             history.notes.append(f"t={t:.4g}: LOBPCG left the sign of the lowest eigenvalue open "
                                  f"({w[0]:.3e}, residual {res[0]:.3e}); inertia from a factorization")
-            negative, _ = lin.factorize(K, exact_inertia=True)
-    elif negative is None:
+    if negative is None and not decided:
         negative, _ = lin.factorize(K, exact_inertia=True)   # inertia (direct); AMG: preconditioner set-up
     if mode == "auto":
         mode = "inertia" if lin.direct else "off"

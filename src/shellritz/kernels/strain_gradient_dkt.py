@@ -446,7 +446,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
         _weighted_M(N_T, N_BASIS, val, wk)
         # Gauss-Newton part sum_t dval_t dval_t^T as axpys over contiguous
         # rows (upper triangle), then the second-derivative part 2 Mw (x) I3
-        D = dval.reshape((16, 27))
+        D = dval.reshape((dval.shape[0], 27))         # a view, (k, j) -> 3 k + j
         for p in range(27):
             kep = ke[p]
             for t in range(N_T):
