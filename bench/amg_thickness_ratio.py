@@ -17,7 +17,8 @@ Rows: rings, n_triangles, dofs, h, h_over_l, strain_gradient (the term
 on), cg_its, reason, setup_s, cg_s, levels, coarsest_blocks.  The file
 also keeps ``before``: the same measure with the code of commit 539d236
 (2026-12-05: prolongation smoothing weighted by the row sums of |A|),
-copied from that run.
+copied from that run, and ``before_near_null``: that of commit 64b8d37,
+whose near null space kept candidates that vanish on the planar reference.
 Writes bench/results/amg_thickness_ratio.json (rows of the cases run
 replace those of the same rings and ratio).
 Run:  python bench/amg_thickness_ratio.py [--rings 45 91 129] [--ratios 0.5 1.8 3.6 7.3]
@@ -59,6 +60,13 @@ BEFORE = [dict(rings=45, n_triangles=12150, h_over_l=0.5, cg_its=24),
           dict(rings=45, n_triangles=12150, h_over_l=7.3, cg_its=186),
           dict(rings=91, n_triangles=49686, h_over_l=1.8, cg_its=28),
           dict(rings=91, n_triangles=49686, h_over_l=3.6, cg_its=58)]
+# commit 64b8d37 (2026-12-05, night): the near null space with the candidates
+# that vanish or are rigid rotations on the planar reference (3 bending modes,
+# 3 strains), before they were left out for in-plane quadratic displacements
+BEFORE_NEAR_NULL = [dict(rings=45, n_triangles=12150, h_over_l=r, cg_its=i)
+                    for r, i in ((0.5, 12), (1.8, 13), (3.6, 44), (7.3, 136))] + \
+                   [dict(rings=91, n_triangles=49686, h_over_l=r, cg_its=i)
+                    for r, i in ((0.5, 23), (1.8, 14), (3.6, 48), (7.3, 150))]
 
 
 def main():
@@ -71,7 +79,8 @@ def main():
     run_cases(RESULTS / "amg_thickness_ratio.json",
               "AMG CG iterations to 1e-8 on the leaf's reference stiffness against h/l", CHILD,
               [dict(rings=rings, h_over_l=ratio) for rings in args.rings for ratio in args.ratios],
-              extra={"before": {"commit": "539d236", "rows": BEFORE}})
+              extra={"before": {"commit": "539d236", "rows": BEFORE},
+                     "before_near_null": {"commit": "64b8d37", "rows": BEFORE_NEAR_NULL}})
 
 
 if __name__ == "__main__":

@@ -279,12 +279,17 @@ def test_rigid_modes_free_only_where_no_support():
 
 def test_near_null_space_has_the_strain_gradient_terms_zero_modes():
     """Where the strain-gradient term is on (elements shorter than h) the
-    AMG near null space adds six homogeneous strains S c to the rigid and
-    bending modes: on a flat free plate they are null vectors of the term's
-    Hessian (R = C |grad grad eps|^2 vanishes for linear displacements),
-    while a cubic in-plane displacement is not; without the term they are
-    not added."""
+    AMG near null space adds homogeneous strains S c and quadratic
+    displacements to the rigid and bending modes: on a flat free plate
+    they are null vectors of the term's Hessian (R = C |grad grad eps|^2
+    vanishes for linear strain), while a cubic in-plane displacement is
+    not; without the term they are not added.  On the plate the bending
+    modes and strains that involve its normal coordinate are zero or rigid
+    rotations and are left out: 9 vectors without the term (6 rigid, 3
+    bending), 18 with it (6 rigid, 3 bending, 3 strains, 6 in-plane
+    quadratic displacements), all independent."""
     from shellritz import StVenantKirchhoff
+    from shellritz.shell import _near_null_candidates
     mesh = shapes.rectangle(8, 8)
     plain = Shell(mesh, 0.05, NeoHookean(1.0, nu=0.3))
     thick = Shell(mesh, 0.3, StVenantKirchhoff.from_young(1.0, 0.3))
@@ -292,9 +297,13 @@ def test_near_null_space_has_the_strain_gradient_terms_zero_modes():
     for s in (plain, thick):
         s._setup()
         s.set_parameter(0.0)
-    assert plain.block_layout()[4]().shape[1] == 12
+    assert plain.block_layout()[4]().shape[1] == 9
     B = thick.block_layout()[4]()
-    assert B.shape[1] == 18
+    assert B.shape[1] == 18 and np.linalg.matrix_rank(B) == 18
+    # the candidates kept: c_x^2, c_y^2, c_x c_y (bending, strains), and those of
+    # the quadratic displacements along e_x, e_y
+    kept = [0, 1, 2, 3, 4, 5, 6, 7, 9, 12, 13, 15, 18, 19, 21, 22, 27, 28]
+    assert np.array_equal(B, _near_null_candidates(thick.U, kept).reshape(B.shape))
     x = thick.free_state()
     U = thick.U.copy()
     data = np.zeros(thick._nnz)              # the term's Hessian alone, in K's pattern
@@ -302,10 +311,7 @@ def test_near_null_space_has_the_strain_gradient_terms_zero_modes():
     K = sp.csr_matrix((data, thick._indices, thick._indptr), shape=(len(x), len(x)))
     KB = lower_matvec(K)(B)
     scale = np.abs(K).max() * np.linalg.norm(B, axis=0)
-    strain = np.arange(7, 18, 2)             # bending and strain modes alternate after the six rigid
-    nonzero = strain[np.linalg.norm(B[:, strain], axis=0) > 0]     # S = e_z e_z vanishes on the plate
-    assert len(nonzero) == 5
-    assert np.all(np.linalg.norm(KB[:, nonzero], axis=0) <= 1e-10 * scale[nonzero])
+    assert np.all(np.linalg.norm(KB[:, 6:], axis=0) <= 1e-10 * scale[6:])
     # a strain curving in the plane is seen: u = c_x^3 e_x (c: the nodes / size)
     r, a1, a2 = thick.U[:, 0], thick.U[:, 1], thick.U[:, 2]
     size = np.abs(r - r.mean(axis=0)).max()
@@ -316,6 +322,30 @@ def test_near_null_space_has_the_strain_gradient_terms_zero_modes():
     V[:, 2, 0] = 3 * cx ** 2 * a2[:, 0] / size
     v = V.reshape(-1)
     assert np.linalg.norm(lower_matvec(K)(v)) > 1e-5 * np.abs(K).max() * np.linalg.norm(v)     # observed 3e-4
+
+
+def test_near_null_space_on_a_curved_shell_keeps_the_strains(monkeypatch):
+    """On a curved shell (a cylinder with elements shorter than h) no
+    candidate depends on the others: the near null space is the rigid
+    modes, the six bending modes and the six homogeneous strains, as
+    before the quadratic displacements were candidates.  The dependencies
+    are found on a sample of nodes (NEAR_NULL_SAMPLE): on a plate a sample
+    of 40 of its 81 nodes finds the same nine vectors as all of them."""
+    import shellritz.shell as shell_module
+    from shellritz.shell import _near_null_candidates
+    mesh = shapes.cylinder(32, 10, radius=1.0, length=1.0)
+    s = Shell(mesh, 0.3, NeoHookean(1.0, nu=0.3))
+    assert s.strain_gradient is not None
+    s._setup()
+    s.set_parameter(0.0)
+    B = s.block_layout()[4]()
+    assert np.array_equal(B, _near_null_candidates(s.U, np.arange(18)).reshape(B.shape))
+    plate = Shell(shapes.rectangle(8, 8), 0.05, NeoHookean(1.0, nu=0.3))
+    plate._setup()
+    plate.set_parameter(0.0)
+    whole = plate.block_layout()[4]()
+    monkeypatch.setattr(shell_module, "NEAR_NULL_SAMPLE", 40)
+    assert np.array_equal(plate.block_layout()[4](), whole) and whole.shape[1] == 9
 
 
 @pytest.mark.parametrize("levels", ["one", "several"])
@@ -444,7 +474,7 @@ def test_amg_rebuild_counts_iterations_per_decade_of_the_forcing_tolerance():
 def test_amg_keeps_the_rigid_and_bending_vectors_where_memory_is_short(room, monkeypatch):
     """With the strain-gradient term on (elements shorter than h) the near
     null space has 18 vectors, rigid and bending modes first (the same as
-    without the term) and the six homogeneous strains last; where the
+    without the term), then strains and quadratic displacements; where the
     hierarchy would not leave room for the Newton iteration
     (_hierarchy_need) AMG builds on the first twelve: coarse blocks of 12
     instead of 18, said in lean_near_null and in the solve's history."""
@@ -464,8 +494,8 @@ def test_amg_keeps_the_rigid_and_bending_vectors_where_memory_is_short(room, mon
         if h == 0.3:
             assert s.strain_gradient is not None
             shell = s
-    assert layouts[0].shape[1] == 18 and layouts[1].shape[1] == 12
-    assert np.array_equal(layouts[0][:, :12], layouts[1])
+    assert layouts[0].shape[1] == 18 and layouts[1].shape[1] == 9     # on the plate: 3 bending modes
+    assert np.array_equal(layouts[0][:, :9], layouts[1])
     K = shell.evaluate(shell.free_state(), 2)[2]
     amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, shell.block_layout())
     amg.factorize(K)
@@ -492,7 +522,11 @@ def test_amg_restriction_is_p_transposed_without_a_copy_and_coarse_solve_is_dire
     monkeypatch.setattr(linalg, "AMG_COARSE_BLOCKS", 10)
     s = _plate(16)
     K = s.evaluate(s.free_state(), 2)[2]
-    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, s.block_layout())
+    # a near null space with a dependent vector (the plate's own has none),
+    # whose zero columns of P make zero rows of the coarse levels
+    block, free, n_full, rigid, near_null = s.block_layout()
+    dependent = lambda: np.hstack([near_null(), near_null()[:, -1:]])
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, (block, free, n_full, rigid, dependent))
     amg.factorize(K)
     ml = amg._ml
     assert len(ml.levels) == 3
@@ -508,8 +542,8 @@ def test_amg_restriction_is_p_transposed_without_a_copy_and_coarse_solve_is_dire
     coarse = ml.coarse_direct
     A = ml.levels[-1].A
     assert coarse._A is A and coarse._solver.name == resolve_method("auto", 0)
-    # this plate's coarsest level has zero rows (12 near-null vectors on
-    # aggregates that cannot tell some apart): solved on a unit diagonal
+    # the coarsest level has zero rows (the dependent vector): solved on a
+    # unit diagonal
     D = A.toarray()
     empty = ~D.any(axis=1)
     assert 0 < empty.sum() < len(D) // 2

@@ -665,55 +665,23 @@ class Shell(Solvable):
         """Nodal blocks: (9, free DOFs in the full numbering, 9 n, callable ->
         the six rigid-body modes of the current state (9 n, 6): translations,
         and rotations acting on positions and both tangent derivatives;
-        callable -> the near null space for AMG: the rigid modes and six
-        bending modes, normal displacements c_i c_j n quadratic in the
-        centred coordinates c (the softest modes of a thin shell after the
-        rigid ones: with them smoothed aggregation needs 15 instead of 32 CG
-        iterations on the 12k-triangle leaf, 54 instead of 124 at 50k), and,
-        where the strain-gradient term is on (elements shorter than h), six
-        homogeneous strains, displacements S c with S symmetric (no strain
-        gradient: the term, R = C |grad grad eps|^2, makes the operator of
-        sixth order at the mesh scale, and the coarse spaces must then
-        carry linear displacement fields; default leaf, CG to 1e-8 on the
-        Hessian at the solution, three levels: 40 -> 37 iterations at 50k
-        triangles, 59 -> 38 at 100k, README "Scaling")); the columns in
-        that order (rigid, bending, strains): where memory is short, AMG
+        callable -> the near null space for AMG (9 n, k), at most
+        NEAR_NULL_VECTORS of the candidates of _near_null_candidates in their
+        order of importance, those dependent on earlier ones left out (on a
+        plate the bending modes and strains that involve its normal
+        coordinate are zero or rigid rotations); where memory is short, AMG
         keeps the first twelve (AMGSolver, AMG_LEAN_NEAR_NULL)."""
         n = self.mesh.n_nodes
 
         def rigid_modes():
-            B = np.zeros((n, 3, 3, 6))
-            B[:, 0, :, :3] = np.eye(3)
-            for k in range(3):
-                w = np.eye(3)[k]
-                B[:, :, :, 3 + k] = np.cross(w, self.U)        # w x r, w x a_1, w x a_2
-            return B.reshape(9 * n, 6)
+            return _near_null_candidates(self.U, np.arange(6)).reshape(9 * n, 6)
 
         def near_null():
-            r, a1, a2 = self.U[:, 0], self.U[:, 1], self.U[:, 2]
-            nrm = np.cross(a1, a2)
-            nrm /= np.linalg.norm(nrm, axis=1)[:, None]
-            size = max(np.abs(r - r.mean(axis=0)).max(), 1e-300)
-            c = (r - r.mean(axis=0)) / size
-            modes, strains = [rigid_modes()], []
-            for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)):
-                grad = np.zeros_like(c)            # d(c_i c_j)/dr
-                grad[:, i] += c[:, j] / size
-                grad[:, j] += c[:, i] / size
-                B = np.empty((n, 3, 3))
-                B[:, 0] = (c[:, i] * c[:, j])[:, None] * nrm
-                B[:, 1] = (grad * a1).sum(axis=1)[:, None] * nrm
-                B[:, 2] = (grad * a2).sum(axis=1)[:, None] * nrm
-                modes.append(B.reshape(9 * n, 1))
-                if self.strain_gradient is not None:
-                    S = np.zeros((3, 3))
-                    S[i, j] = S[j, i] = 1.0
-                    B = np.empty((n, 3, 3))
-                    B[:, 0] = c @ S                          # S c (S symmetric)
-                    B[:, 1] = a1 @ S / size
-                    B[:, 2] = a2 @ S / size
-                    strains.append(B.reshape(9 * n, 1))
-            return np.hstack(modes + strains)      # in order of importance (AMGSolver may cut)
+            count = 36 if self.strain_gradient is not None else 12
+            sample = np.unique(np.linspace(0, n - 1, min(n, NEAR_NULL_SAMPLE)).astype(np.int64))
+            C = _near_null_candidates(self.U, np.arange(count), sample)
+            keep = _independent_columns(C.reshape(-1, count))[:NEAR_NULL_VECTORS]
+            return _near_null_candidates(self.U, keep).reshape(9 * n, len(keep))
         return 9, self.free, 9 * n, rigid_modes, near_null
 
     def _node_positions(self, nodes):
@@ -749,6 +717,95 @@ class Shell(Solvable):
         self.restore_point(saved)
         self.U.reshape(-1)[self.free] = U.reshape(-1)[self.free]
         return t, scale
+
+
+# AMG near null space (Shell.block_layout): at most NEAR_NULL_VECTORS
+# candidates (the coarse operators grow with the square of their number:
+# memory at 1M triangles, linalg.AMG_LEAN_NEAR_NULL); candidates that depend
+# on earlier ones are found on NEAR_NULL_SAMPLE nodes spread over the mesh
+# (the dependencies are polynomial identities in the node positions, exact
+# on any nodes in general position) and left out: their part orthogonal to
+# the kept ones is below NEAR_NULL_DEPENDENT times the largest candidate
+NEAR_NULL_VECTORS = 18
+NEAR_NULL_SAMPLE = 4096
+NEAR_NULL_DEPENDENT = 1e-8
+_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
+
+
+def _near_null_candidates(U, columns, nodes=None):
+    """Candidate near-null vectors of the triangle engine's Hessian at the
+    nodal state U (n, 3, 3) (position, tangent derivatives a_1, a_2), the
+    ``columns`` of this list, on ``nodes`` (default all): (m, 3, 3, k).
+
+    0-5: the rigid modes, translations e_k and rotations w x (r, a_1, a_2);
+    6-11: bending modes, normal displacements c_i c_j n quadratic in the
+    centred, scaled coordinates c (the softest modes of a thin shell after
+    the rigid ones: with them smoothed aggregation needs 15 instead of 32
+    CG iterations on the 12k-triangle leaf, 54 instead of 124 at 50k);
+    where the strain-gradient term is on (elements shorter than h; R = C
+    |grad grad eps|^2 makes the operator of sixth order at the mesh scale,
+    and the coarse spaces must carry the fields it does not see):
+    12-17: homogeneous strains, displacements S c with S symmetric (default
+    leaf, CG to 1e-8 on the Hessian at the solution, three levels: 40 -> 37
+    iterations at 50k triangles, 59 -> 38 at 100k, README "Scaling");
+    18-35: quadratic displacements c_i c_j e_k (linear strain: no strain
+    gradient), which fill the places of the dependent bending modes and
+    strains on a plate (12k-triangle leaf at its flat reference state,
+    h/l = 3.6 / 7.3: 44 / 136 -> 29 / 72 iterations).  The tangent
+    derivatives of each field along a_1, a_2 make up the other DOFs."""
+    r = U[:, 0]
+    centre = r.mean(axis=0)
+    size = max(np.abs(r - centre).max(), 1e-300)
+    V = U if nodes is None else U[nodes]
+    r, a1, a2 = V[:, 0], V[:, 1], V[:, 2]
+    c = (r - centre) / size
+    nrm = np.cross(a1, a2)
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    out = np.zeros((len(V), 3, 3, len(columns)))
+    eye = np.eye(3)
+    for col, k in enumerate(columns):
+        B = out[..., col]
+        if k < 3:                                  # translation
+            B[:, 0, k] = 1.0
+        elif k < 6:                                # rotation w x (r, a_1, a_2)
+            B[:] = np.cross(eye[k - 3], V)
+        elif k < 12 or k >= 18:                    # c_i c_j n or c_i c_j e_m
+            i, j = _PAIRS[(k - 6) if k < 12 else (k - 18) // 3]
+            grad = np.zeros_like(c)                # d(c_i c_j)/dr
+            grad[:, i] += c[:, j] / size
+            grad[:, j] += c[:, i] / size
+            d = nrm if k < 12 else eye[(k - 18) % 3]
+            B[:, 0] = (c[:, i] * c[:, j])[:, None] * d
+            B[:, 1] = (grad * a1).sum(axis=1)[:, None] * d
+            B[:, 2] = (grad * a2).sum(axis=1)[:, None] * d
+        else:                                      # S c, S[i, j] = S[j, i] = 1
+            i, j = _PAIRS[k - 12]
+            S = np.zeros((3, 3))
+            S[i, j] = S[j, i] = 1.0
+            B[:, 0] = c @ S
+            B[:, 1] = a1 @ S / size
+            B[:, 2] = a2 @ S / size
+    return out
+
+
+def _independent_columns(M):
+    """Indices of the columns of M whose part orthogonal to the earlier
+    ones kept (modified Gram-Schmidt, twice) is above NEAR_NULL_DEPENDENT
+    times the largest column: the candidates are fields of one scale (the
+    coordinates c are of order one), so a candidate that vanishes to
+    round-off (c_z^2 n on a plate) is left out, not normalized up."""
+    scale = NEAR_NULL_DEPENDENT * np.linalg.norm(M, axis=0).max()
+    kept, Q = [], []
+    for j in range(M.shape[1]):
+        v = M[:, j].astype(np.float64, copy=True)
+        for _ in range(2):
+            for q in Q:
+                v -= (q @ v) * q
+        rest = np.linalg.norm(v)
+        if rest > scale:
+            Q.append(v / rest)
+            kept.append(j)
+    return np.array(kept, dtype=np.int64)
 
 
 def _volume_terms(tri, r, mode):
