@@ -324,6 +324,21 @@ def test_near_null_space_has_the_strain_gradient_terms_zero_modes():
     assert np.linalg.norm(lower_matvec(K)(v)) > 1e-5 * np.abs(K).max() * np.linalg.norm(v)     # observed 3e-4
 
 
+def test_independent_near_null_columns():
+    """_independent_columns keeps a column only where its part orthogonal
+    to the kept ones is above NEAR_NULL_DEPENDENT of the largest column:
+    a multiple of a kept column, a zero column, one at round-off scale and
+    a non-finite one are left out."""
+    from shellritz.shell import _independent_columns
+    rng = np.random.default_rng(0)
+    M = rng.standard_normal((60, 7))
+    M[:, 2] = np.nan
+    M[:, 3] = 2 * M[:, 0] - M[:, 1]
+    M[:, 4] = 0.0
+    M[:, 5] = 1e-12 * rng.standard_normal(60)
+    assert _independent_columns(M).tolist() == [0, 1, 6]
+
+
 def test_near_null_space_on_a_curved_shell_keeps_the_strains(monkeypatch):
     """On a curved shell (a cylinder with elements shorter than h) no
     candidate depends on the others: the near null space is the rigid

@@ -793,10 +793,13 @@ def _independent_columns(M):
     ones kept (modified Gram-Schmidt, twice) is above NEAR_NULL_DEPENDENT
     times the largest column: the candidates are fields of one scale (the
     coordinates c are of order one), so a candidate that vanishes to
-    round-off (c_z^2 n on a plate) is left out, not normalized up."""
-    scale = NEAR_NULL_DEPENDENT * np.linalg.norm(M, axis=0).max()
+    round-off (c_z^2 n on a plate) is left out, not normalized up; so is
+    one that is not finite (a degenerate tangent plane)."""
+    norms = np.linalg.norm(M, axis=0)
+    finite = np.isfinite(norms)
+    scale = NEAR_NULL_DEPENDENT * (norms[finite].max() if finite.any() else 0.0)
     kept, Q = [], []
-    for j in range(M.shape[1]):
+    for j in np.flatnonzero(finite):
         v = M[:, j].astype(np.float64, copy=True)
         for _ in range(2):
             for q in Q:
