@@ -753,14 +753,14 @@ def _near_null_candidates(U, columns, nodes=None):
     strains on a plate (12k-triangle leaf at its flat reference state,
     h/l = 3.6 / 7.3: 44 / 136 -> 29 / 72 iterations).  The tangent
     derivatives of each field along a_1, a_2 make up the other DOFs."""
-    r = U[:, 0]
-    centre = r.mean(axis=0)
-    size = max(np.abs(r - centre).max(), 1e-300)
     V = U if nodes is None else U[nodes]
-    r, a1, a2 = V[:, 0], V[:, 1], V[:, 2]
-    c = (r - centre) / size
-    nrm = np.cross(a1, a2)
-    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    a1, a2 = V[:, 1], V[:, 2]
+    if max(columns, default=0) >= 6:            # the fields beyond the rigid modes
+        centre = U[:, 0].mean(axis=0)
+        size = max(np.abs(U[:, 0] - centre).max(), 1e-300)
+        c = (V[:, 0] - centre) / size
+        nrm = np.cross(a1, a2)
+        nrm /= np.linalg.norm(nrm, axis=1)[:, None]
     out = np.zeros((len(V), 3, 3, len(columns)))
     eye = np.eye(3)
     for col, k in enumerate(columns):
