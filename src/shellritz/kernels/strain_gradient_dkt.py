@@ -24,6 +24,14 @@ block is a bilinear form in the element's 9 nodal 3-vectors X, P = X : M X,
 evaluated as (X - X_ref) : M (X + X_ref) less its growth part, so that it
 vanishes exactly at the reference without growth; dP/dX = 2 M X and
 d2P/dX2 = 2 M (x) I3: energy, gradient and Hessian are exact.
+
+The products u.v making the blocks are listed (the basis rows of u and v:
+u = Bas[iu] . X).  The gradient of a weighted sum of blocks, om . P, is
+never formed block by block: with the vectors V = Bas . X of the point,
+d(om . P)/dX = 2 Bas^T Z(om), Z(om)[iu] += om[idx] V[iv] / 2 and
+Z(om)[iv] += om[idx] V[iu] / 2 over the listed products (_gradient_of):
+the gradient of the energy is one such map (om = sum_t val_t chi_t), the
+Hessian's Gauss-Newton part one per component.
 """
 
 import numpy as np
@@ -88,32 +96,33 @@ def _work():
     """Work arrays of one element, or of one side of an edge (see _blocks)."""
     return (np.zeros((3, 3)), np.zeros((3, 3, 2)), np.zeros((3, 2, 2)), np.zeros((3, 2)),   # 0-3 Xe Te Q gl
             np.zeros((3, 2)), np.zeros(3), np.zeros((5, 9)), np.zeros((2, 9)),              # 4-7 et el b Cw
-            np.zeros((9, 3)), np.zeros((9, 3)), np.zeros((9, 3)), np.zeros((9, 3)),         # 8-11 Xd Xs Xc Xr
-            np.zeros((3, 2, 9)), np.zeros((5, 9)), np.zeros(3),                             # 12-14 D3 bv lam
-            np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3)),         # 15-18 vd vs vc vR
-            np.zeros((3, 2, 3)), np.zeros((3, 2, 3)), np.zeros((3, 2, 3)), np.zeros((3, 2, 3)),  # 19-22 3rd derivs
-            np.zeros((3, 3)), np.zeros((2, 3, 3)),                                          # 23-24 G dG
-            np.zeros((2, 3)), np.zeros((2, 2, 3)), np.zeros((2, 2, 2, 3)), np.zeros(3),     # 25-28 u du ddu tmp
-            np.zeros(NP2), np.zeros((NP2, 9, 3)), np.zeros((N_BASIS, N_BASIS)),             # 29-31 P dP Wt
-            np.zeros((2, 2)), np.zeros((2, 2, 2)), np.zeros((2, 2, 2, 2)), np.zeros((2, 2)),  # 32-35 Ainv Gam dGam L
-            np.zeros((2, 3)), np.zeros((2, 2)),                                             # 36-37 g^a, dA^-1
-            np.zeros((2, 2, 2, NP2)), np.zeros(NP2), np.zeros((16, NP2)),                   # 38-40 k1 k2 chi
-            np.zeros(16), np.zeros((16, 9, 3)), np.zeros((9, 9)),                           # 41-43 val dval Mw
-            np.zeros((N_PRODUCTS, 3), np.int64), np.zeros(1, np.int64),                     # 44-45 products
-            np.zeros(NP2), np.zeros((N_BASIS, 9)), np.zeros((N_BASIS, 9)))                  # 46-48 om Bas T
+            np.zeros((9, 3)), np.zeros((9, 3)), np.zeros((9, 3)),                           # 8-10 Xd Xc Xr
+            np.zeros((3, 2, 9)), np.zeros((5, 9)), np.zeros(3),                             # 11-13 D3 bv lam
+            np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3)),                           # 14-16 vd vs vR
+            np.zeros((3, 2, 3)), np.zeros((3, 2, 3)), np.zeros((3, 2, 3)),                  # 17-19 td ts tR
+            np.zeros((3, 3)), np.zeros((2, 3, 3)),                                          # 20-21 G dG
+            np.zeros((2, 3)), np.zeros((2, 2, 3)), np.zeros((2, 2, 2, 3)), np.zeros(3),     # 22-25 u du ddu tmp
+            np.zeros(NP2), np.zeros((N_BASIS, 3)), np.zeros((N_BASIS, N_BASIS)),            # 26-28 P V Wt
+            np.zeros((2, 2)), np.zeros((2, 2, 2)), np.zeros((2, 2, 2, 2)), np.zeros((2, 2)),  # 29-32 Ainv Gam dGam L
+            np.zeros((2, 3)), np.zeros((2, 2)),                                             # 33-34 g^a, dA^-1
+            np.zeros(8), np.zeros(8), np.zeros((16, NP2)),                                  # 35-37 g1 w1 chi
+            np.zeros(16), np.zeros((16, 9, 3)), np.zeros((9, 9)),                           # 38-40 val dval Mw
+            np.zeros((N_PRODUCTS, 3), np.int64), np.zeros(1, np.int64),                     # 41-42 products
+            np.zeros(NP2), np.zeros((N_BASIS, 9)), np.zeros((N_BASIS, 9)),                  # 43-45 om Bas T
+            np.zeros(16), np.zeros((N_T, 16)), np.zeros(16), np.zeros((N_BASIS, 3)),        # 46-49 wq F s Z
+            np.zeros((9, 3)), np.zeros((NP2, 27)))                                          # 50-51 gradient at a point, dP
 
 
 @njit(**KERNEL)
 def _load_element(e, tri, X, T, U, wk):
-    """Nodal blocks X - Xref, X + Xref, X, Xref of element e and its facet chart;
+    """Nodal blocks X - Xref, X, Xref of element e and its facet chart;
     returns the facet area."""
     Xe, Te, Q, gl, et, el = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
-    Xd, Xs, Xc, Xr = wk[8], wk[9], wk[10], wk[11]
+    Xd, Xc, Xr = wk[8], wk[9], wk[10]
     gather_element(e, tri, X, T, U, Xe, Te, Xr, Xc)
     for k in range(9):
         for c in range(3):
             Xd[k, c] = Xc[k, c] - Xr[k, c]
-            Xs[k, c] = Xc[k, c] + Xr[k, c]
     return element_chart(Xe, Te, Q, gl, et, el)
 
 
@@ -121,7 +130,7 @@ def _load_element(e, tri, X, T, U, wk):
 def _third_derivative_map(wk):
     """D3[ab, c] (coefficients on the 9 nodal vectors): r_abc = sum_i gl[i, c]
     r_ab(vertex i)."""
-    Q, gl, et, el, Cw, D3, bv, lam = wk[2], wk[3], wk[4], wk[5], wk[7], wk[12], wk[13], wk[14]
+    Q, gl, et, el, Cw, D3, bv, lam = wk[2], wk[3], wk[4], wk[5], wk[7], wk[11], wk[12], wk[13]
     for p in range(3):
         for c in range(2):
             for k in range(9):
@@ -134,7 +143,7 @@ def _third_derivative_map(wk):
             for c in range(2):
                 for k in range(9):
                     D3[p, c, k] += gl[i, c] * bv[2 + p, k]
-    Bas = wk[47]
+    Bas = wk[44]
     for p in range(3):
         for c in range(2):
             for k in range(9):
@@ -142,21 +151,15 @@ def _third_derivative_map(wk):
 
 
 @njit(**KERNEL)
-def _product(wk, idx, iu, iv, ud, us, uc, uR, vd, vs, vc, vR, ug, vg, mode):
+def _product(wk, idx, iu, iv, ud, us, uR, vd, vs, vR, ug, vg, mode):
     """Block idx += u.v for two linear maps with coefficient rows cu = Bas[iu],
-    cv = Bas[iv] (their vectors of X - Xref (d), X + Xref (s), X (c), Xref (R))
-    less the growth part ug.vg - uR.vR; gradient cu (x) v + cv (x) u.  The
-    second derivative, M_idx += (cu cv^T + cv cu^T)/2 (x) I3, is not formed:
-    the product is listed and _weighted_M sums the weighted M_idx at once."""
-    P, dP, Bas = wk[29], wk[30], wk[47]
-    cu, cv = Bas[iu], Bas[iv]
+    cv = Bas[iv] (their vectors of X - Xref (d), X + Xref (s), Xref (R))
+    less the growth part ug.vg - uR.vR.  Its derivatives are not formed:
+    the product is listed (mode >= 1) for _gradient_of and _weighted_M."""
+    P = wk[26]
     P[idx] += 0.5 * (_dot(ud, vs) + _dot(us, vd)) - (_dot(ug, vg) - _dot(uR, vR))
     if mode >= 1:
-        for k in range(9):
-            for j in range(3):
-                dP[idx, k, j] += cu[k] * vc[j] + cv[k] * uc[j]
-    if mode >= 2:
-        tab, n = wk[44], wk[45]
+        tab, n = wk[41], wk[42]
         tab[n[0], 0] = idx
         tab[n[0], 1] = iu
         tab[n[0], 2] = iv
@@ -175,37 +178,38 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
     the loaded element, and the reference geometry there: A^-1, the
     Christoffel symbols Gam[c, a, d] = Gamma^d_ca (and dGam[e, c, a, d] =
     d_e Gamma^d_ca), L with L^T A L = I, the dual basis g^a."""
-    Q, gl, et, el, b, Cw, D3 = wk[2], wk[3], wk[4], wk[5], wk[6], wk[7], wk[12]
-    Xd, Xs, Xc, Xr = wk[8], wk[9], wk[10], wk[11]
-    vd, vs, vc, vR = wk[15], wk[16], wk[17], wk[18]        # rows: r_1, r_2, r_11, r_12, r_22
-    td, ts, tc, tR = wk[19], wk[20], wk[21], wk[22]        # r_abc
-    G, dG, u, du, ddu, tmp = wk[23], wk[24], wk[25], wk[26], wk[27], wk[28]
-    P, dP = wk[29], wk[30]
-    Ainv, Gam, dGam, L, gup, dAi = wk[32], wk[33], wk[34], wk[35], wk[36], wk[37]
+    Q, gl, et, el, b, Cw, D3 = wk[2], wk[3], wk[4], wk[5], wk[6], wk[7], wk[11]
+    Xd, Xr = wk[8], wk[10]
+    vd, vs, vR = wk[14], wk[15], wk[16]        # rows: r_1, r_2, r_11, r_12, r_22
+    td, ts, tR = wk[17], wk[18], wk[19]        # r_abc
+    G, dG, u, du, ddu, tmp = wk[20], wk[21], wk[22], wk[23], wk[24], wk[25]
+    P, V = wk[26], wk[27]
+    Ainv, Gam, dGam, L, gup, dAi = wk[29], wk[30], wk[31], wk[32], wk[33], wk[34]
     point_map(lam, Q, gl, et, el, b, Cw)
-    Bas = wk[47]
+    Bas = wk[44]
     for r in range(5):
         for k in range(9):
             Bas[r, k] = b[r, k]
-    wk[45][0] = 0
+    wk[42][0] = 0
     for p in range(NP2):
         P[p] = 0.0
-        if mode >= 1:
-            for k in range(9):
-                for j in range(3):
-                    dP[p, k, j] = 0.0
+    # the vectors of X - Xref (d, exactly zero at the reference), of Xref
+    # (R), of X + Xref (s), and V = Bas . X (rows 0-4 r_1 ... r_22, rows
+    # 5-10 r_abc) for _gradient_of
     for r in range(5):
         _apply(b[r], Xd, vd[r])
-        _apply(b[r], Xs, vs[r])
-        _apply(b[r], Xc, vc[r])
         _apply(b[r], Xr, vR[r])
+        for j in range(3):
+            vs[r, j] = vd[r, j] + 2.0 * vR[r, j]
+            V[r, j] = vd[r, j] + vR[r, j]
     if second:
         for p in range(3):
             for c in range(2):
                 _apply(D3[p, c], Xd, td[p, c])
-                _apply(D3[p, c], Xs, ts[p, c])
-                _apply(D3[p, c], Xc, tc[p, c])
                 _apply(D3[p, c], Xr, tR[p, c])
+                for j in range(3):
+                    ts[p, c, j] = td[p, c, j] + 2.0 * tR[p, c, j]
+                    V[_basis_row(p, c), j] = td[p, c, j] + tR[p, c, j]
     # growth at the point, relative to node 0 (equal nodal values give dG = 0 exactly)
     for r in range(3):
         for c in range(3):
@@ -237,15 +241,15 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                         ddu[a, c, d, j] += tmp[j]
     for a in range(2):
         for bb in range(a, 2):
-            _product(wk, _i0(a, bb), a, bb, vd[a], vs[a], vc[a], vR[a],
-                     vd[bb], vs[bb], vc[bb], vR[bb], u[a], u[bb], mode)
+            _product(wk, _i0(a, bb), a, bb, vd[a], vs[a], vR[a],
+                     vd[bb], vs[bb], vR[bb], u[a], u[bb], mode)
             for c in range(2):
                 ac, bc = 2 + _pair(a, c), 2 + _pair(bb, c)
                 i1 = _i1(a, bb, c)
-                _product(wk, i1, ac, bb, vd[ac], vs[ac], vc[ac], vR[ac],
-                         vd[bb], vs[bb], vc[bb], vR[bb], du[a, c], u[bb], mode)
-                _product(wk, i1, a, bc, vd[a], vs[a], vc[a], vR[a],
-                         vd[bc], vs[bc], vc[bc], vR[bc], u[a], du[bb, c], mode)
+                _product(wk, i1, ac, bb, vd[ac], vs[ac], vR[ac],
+                         vd[bb], vs[bb], vR[bb], du[a, c], u[bb], mode)
+                _product(wk, i1, a, bc, vd[a], vs[a], vR[a],
+                         vd[bc], vs[bc], vR[bc], u[a], du[bb, c], mode)
                 if not second:
                     continue
                 for d in range(c, 2):
@@ -253,14 +257,14 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                     pac, pbc = ac - 2, bc - 2
                     i2 = _i2(a, bb, c, d)
                     _product(wk, i2, _basis_row(pac, d), bb, td[pac, d],
-                             ts[pac, d], tc[pac, d], tR[pac, d],
-                             vd[bb], vs[bb], vc[bb], vR[bb], ddu[a, c, d], u[bb], mode)
-                    _product(wk, i2, ac, bd, vd[ac], vs[ac], vc[ac], vR[ac],
-                             vd[bd], vs[bd], vc[bd], vR[bd], du[a, c], du[bb, d], mode)
-                    _product(wk, i2, ad, bc, vd[ad], vs[ad], vc[ad], vR[ad],
-                             vd[bc], vs[bc], vc[bc], vR[bc], du[a, d], du[bb, c], mode)
+                             ts[pac, d], tR[pac, d],
+                             vd[bb], vs[bb], vR[bb], ddu[a, c, d], u[bb], mode)
+                    _product(wk, i2, ac, bd, vd[ac], vs[ac], vR[ac],
+                             vd[bd], vs[bd], vR[bd], du[a, c], du[bb, d], mode)
+                    _product(wk, i2, ad, bc, vd[ad], vs[ad], vR[ad],
+                             vd[bc], vs[bc], vR[bc], du[a, d], du[bb, c], mode)
                     _product(wk, i2, a, _basis_row(pbc, d), vd[a], vs[a],
-                             vc[a], vR[a], td[pbc, d], ts[pbc, d], tc[pbc, d], tR[pbc, d], u[a],
+                             vR[a], td[pbc, d], ts[pbc, d], tR[pbc, d], u[a],
                              ddu[bb, c, d], mode)
     # reference metric, dual basis, orthonormalizing L = C^-T (A = C C^T)
     A00, A01, A11 = _dot(vR[0], vR[0]), _dot(vR[0], vR[1]), _dot(vR[1], vR[1])
@@ -304,74 +308,165 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                     dGam[ee, c, a, d] = s
 
 
+# The covariant derivatives of a_ab are fixed linear combinations of the
+# blocks (NP2 vectors): with Gam[c, a, f] = Gamma^f_ca,
+#   grad_c a_ab      = P1[ab,c] - Gamma^f_ca P0[fb] - Gamma^f_cb P0[af],
+#   grad_d grad_c a_ab = d_d(grad_c a_ab) - Gamma^g_dc grad_g a_ab
+#                      - Gamma^g_da grad_c a_gb - Gamma^g_db grad_c a_ag.
+# They are applied to a vector of the blocks' space (_nabla*_dot: the
+# derivatives of P, 8 or 16 values, index 4a + 2b + c or 8a + 4b + 2c + d)
+# and combined with weights (_nabla*_adjoint: om += the weighted sum of the
+# rows, the weights of the blocks in a combination of the derivatives).
+
 @njit(**KERNEL)
-def _kappa1(wk):
-    """k1[a, b, c] (NP2): grad_c a_ab = P1[ab,c] - Gamma^f_ca P0[fb] - Gamma^f_cb P0[af]."""
-    Gam, k1 = wk[33], wk[38]
+def _nabla1_dot(wk, x, out):
+    """out[4a + 2b + c] = grad_c a_ab evaluated on the block values x."""
+    Gam = wk[30]
     for a in range(2):
         for bb in range(2):
             for c in range(2):
-                row = k1[a, bb, c]
-                for p in range(NP2):
-                    row[p] = 0.0
-                row[_i1(a, bb, c)] += 1.0
+                s = x[_i1(a, bb, c)]
                 for f in range(2):
-                    row[_i0(f, bb)] -= Gam[c, a, f]
-                    row[_i0(a, f)] -= Gam[c, bb, f]
+                    s -= Gam[c, a, f] * x[_i0(f, bb)] + Gam[c, bb, f] * x[_i0(a, f)]
+                out[4 * a + 2 * bb + c] = s
 
 
 @njit(**KERNEL)
-def _kappa2(a, bb, c, d, wk):
-    """k2 (NP2): grad_d grad_c a_ab = d_d(grad_c a_ab) - Gamma^g_dc grad_g a_ab
-    - Gamma^g_da grad_c a_gb - Gamma^g_db grad_c a_ag."""
-    Gam, dGam, k1, out = wk[33], wk[34], wk[38], wk[39]
-    for p in range(NP2):
-        out[p] = 0.0
-    out[_i2(a, bb, c, d)] += 1.0
-    for f in range(2):
-        out[_i0(f, bb)] -= dGam[d, c, a, f]
-        out[_i1(f, bb, d)] -= Gam[c, a, f]
-        out[_i0(a, f)] -= dGam[d, c, bb, f]
-        out[_i1(a, f, d)] -= Gam[c, bb, f]
-    for g in range(2):
-        for p in range(NP2):
-            out[p] -= (Gam[d, c, g] * k1[a, bb, g, p] + Gam[d, a, g] * k1[g, bb, c, p]
-                       + Gam[d, bb, g] * k1[a, g, c, p])
+def _nabla1_adjoint(wk, w1, om):
+    """om += sum_abc w1[4a + 2b + c] (the blocks' coefficients of grad_c a_ab)."""
+    Gam = wk[30]
+    for a in range(2):
+        for bb in range(2):
+            for c in range(2):
+                w = w1[4 * a + 2 * bb + c]
+                om[_i1(a, bb, c)] += w
+                for f in range(2):
+                    om[_i0(f, bb)] -= w * Gam[c, a, f]
+                    om[_i0(a, f)] -= w * Gam[c, bb, f]
 
 
 @njit(**KERNEL)
-def _components(ncomp, nblock, mode, wk):
-    """val[t] = chi[t] . P / 2 (the covariant components of e) and, if mode
-    asks, dval[t] = chi[t] . dP / 2 (9, 3); chi[t] is zero beyond nblock."""
-    P, dP, chi, val, dval = wk[29], wk[30], wk[40], wk[41], wk[42]
+def _nabla2_dot(wk, x, out):
+    """out[8a + 4b + 2c + d] = grad_d grad_c a_ab evaluated on the block values x."""
+    Gam, dGam, g1 = wk[30], wk[31], wk[35]
+    _nabla1_dot(wk, x, g1)
+    for q in range(16):
+        a, bb, c, d = q // 8, (q // 4) % 2, (q // 2) % 2, q % 2
+        s = x[_i2(a, bb, c, d)]
+        for f in range(2):
+            s -= (dGam[d, c, a, f] * x[_i0(f, bb)] + Gam[c, a, f] * x[_i1(f, bb, d)]
+                  + dGam[d, c, bb, f] * x[_i0(a, f)] + Gam[c, bb, f] * x[_i1(a, f, d)])
+            s -= (Gam[d, c, f] * g1[4 * a + 2 * bb + f] + Gam[d, a, f] * g1[4 * f + 2 * bb + c]
+                  + Gam[d, bb, f] * g1[4 * a + 2 * f + c])
+        out[q] = s
+
+
+@njit(**KERNEL)
+def _nabla2_adjoint(wk, w2, om):
+    """om += sum_q w2[q] (the blocks' coefficients of grad_d grad_c a_ab, q = 8a + 4b + 2c + d)."""
+    Gam, dGam, w1 = wk[30], wk[31], wk[36]
+    for i in range(8):
+        w1[i] = 0.0
+    for q in range(16):
+        w = w2[q]
+        if w == 0.0:
+            continue
+        a, bb, c, d = q // 8, (q // 4) % 2, (q // 2) % 2, q % 2
+        om[_i2(a, bb, c, d)] += w
+        for f in range(2):
+            om[_i0(f, bb)] -= w * dGam[d, c, a, f]
+            om[_i1(f, bb, d)] -= w * Gam[c, a, f]
+            om[_i0(a, f)] -= w * dGam[d, c, bb, f]
+            om[_i1(a, f, d)] -= w * Gam[c, bb, f]
+            w1[4 * a + 2 * bb + f] -= w * Gam[d, c, f]
+            w1[4 * f + 2 * bb + c] -= w * Gam[d, a, f]
+            w1[4 * a + 2 * f + c] -= w * Gam[d, bb, f]
+    _nabla1_adjoint(wk, w1, om)
+
+
+@njit(**KERNEL)
+def _components(ncomp, nblock, wk):
+    """val[t] = chi[t] . P / 2, the components of e that chi combines."""
+    P, chi, val = wk[26], wk[37], wk[38]
     for t in range(ncomp):
         s = 0.0
         for p in range(nblock):
             s += chi[t, p] * P[p]
         val[t] = 0.5 * s
-        if mode >= 1:
-            for k in range(9):
-                for j in range(3):
-                    s = 0.0
-                    for p in range(nblock):
-                        s += chi[t, p] * dP[p, k, j]
-                    dval[t, k, j] = 0.5 * s
 
 
 @njit(**KERNEL)
-def _weighted_M(ncomp, nbasis, weights, wk):
-    """Mw = sum_t weights[t] (chi[t] . M) / 2: the second derivative of
-    sum_t weights_t val_t is 2 Mw (x) I3.  With om = sum_t weights_t chi[t]
-    and the listed products n (block idx_n, basis rows u_n, v_n; _product),
-    Mw = sum_n om[idx_n] (c_u c_v^T + c_v c_u^T) / 4 = Bas^T Wt Bas on the
-    first nbasis basis rows (5 when the blocks stop at P1)."""
-    Wt, chi, Mw = wk[31], wk[40], wk[43]
-    tab, n, om, Bas, T = wk[44], wk[45], wk[46], wk[47], wk[48]
-    for p in range(NP2):
+def _combine(ncomp, nblock, weights, wk):
+    """om = sum_t weights_t chi[t]: the blocks' weights in sum_t weights_t val_t."""
+    chi, om = wk[37], wk[43]
+    for p in range(nblock):
         s = 0.0
         for t in range(ncomp):
             s += weights[t] * chi[t, p]
         om[p] = s
+
+
+@njit(**KERNEL)
+def _gradient_of(om, nbasis, wk, out):
+    """out (9, 3) = d(om . P / 2)/dX = Bas^T Z(om) (module docstring) over
+    the listed products and the first nbasis basis rows."""
+    tab, n, Bas, V, Z = wk[41], wk[42], wk[44], wk[27], wk[49]
+    for u in range(nbasis):
+        for j in range(3):
+            Z[u, j] = 0.0
+    for r in range(n[0]):
+        c = 0.5 * om[tab[r, 0]]
+        if c != 0.0:
+            iu, iv = tab[r, 1], tab[r, 2]
+            for j in range(3):
+                Z[iu, j] += c * V[iv, j]
+                Z[iv, j] += c * V[iu, j]
+    for k in range(9):
+        for j in range(3):
+            s = 0.0
+            for u in range(nbasis):
+                s += Bas[u, k] * Z[u, j]
+            out[k, j] = s
+
+
+@njit(**KERNEL)
+def _component_gradients(ncomp, nblock, wk):
+    """dval[t] (9, 3) = d val_t / dX for the components chi combines: the
+    blocks' gradients dP[p] = dP_p / dX (flattened, 3 k + j) from the listed
+    products (d(u.v) = cu (x) v + cv (x) u), then dval_t = chi[t] . dP / 2
+    as axpys over contiguous rows."""
+    tab, n, Bas, V, chi, dP = wk[41], wk[42], wk[44], wk[27], wk[37], wk[51]
+    D = wk[39].reshape((wk[39].shape[0], 27))         # a view of dval, (k, j) -> 3 k + j
+    for p in range(nblock):
+        for kj in range(27):
+            dP[p, kj] = 0.0
+    for r in range(n[0]):
+        idx, iu, iv = tab[r, 0], tab[r, 1], tab[r, 2]
+        for k in range(9):
+            bu, bv = Bas[iu, k], Bas[iv, k]
+            for j in range(3):
+                dP[idx, 3 * k + j] += bu * V[iv, j] + bv * V[iu, j]
+    for t in range(ncomp):
+        Dt = D[t]
+        for kj in range(27):
+            Dt[kj] = 0.0
+        for p in range(nblock):
+            c = 0.5 * chi[t, p]
+            if c != 0.0:
+                dPp = dP[p]
+                for kj in range(27):
+                    Dt[kj] += c * dPp[kj]
+
+
+@njit(**KERNEL)
+def _weighted_M(nbasis, wk):
+    """Mw = sum_p om_p M_p / 2 for the weights om (_combine): the second
+    derivative of om . P / 2 is 2 Mw (x) I3.  Over the listed products n
+    (block idx_n, basis rows u_n, v_n; _product), Mw = sum_n om[idx_n]
+    (c_u c_v^T + c_v c_u^T) / 4 = Bas^T Wt Bas on the first nbasis basis
+    rows (5 when the blocks stop at P1)."""
+    Wt, Mw = wk[28], wk[40]
+    tab, n, om, Bas, T = wk[41], wk[42], wk[43], wk[44], wk[45]
     for u in range(nbasis):
         for v in range(nbasis):
             Wt[u, v] = 0.0
@@ -402,48 +497,60 @@ def _weighted_M(ncomp, nbasis, weights, wk):
 def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk):
     """R_e of element e; ge (9, 3) and the upper triangle of ke (27, 27) if
     mode asks (overwritten).  G0n: nodal growth G0 (n, 3, 3)."""
-    L, chi, k2, val, dval, Mw = wk[35], wk[40], wk[39], wk[41], wk[42], wk[43]
+    L, chi, val, dval, om = wk[32], wk[37], wk[38], wk[39], wk[43]
+    wq, F, s2, gq = wk[46], wk[47], wk[48], wk[50]
     area = _load_element(e, tri, X, T, U, wk)
     _third_derivative_map(wk)
     zero_element(mode, ge, ke)
     Re = 0.0
     for iq in range(bary.shape[0]):
         _blocks(e, bary[iq], tri, G0n, mode, True, wk)
-        _kappa1(wk)
+        # orthonormal components T_IJKL = L_aI L_bJ L_cK L_dL grad_d grad_c e_ab
+        # = sum_q F[t, q] s2[q] / 2 (s2 = grad grad a of the blocks P);
+        # T_IJKL = T_JIKL (e is symmetric), so |T|^2 sums IJ = 00, 11 once
+        # and IJ = 01 twice: component t = (IJ = 00 | 01 | 11, K, L) is
+        # scaled by sqrt(2) for IJ = 01 and the sums below run over N_T = 12
+        # unweighted.
+        _nabla2_dot(wk, wk[26], s2)
+        for q in range(16):
+            a, bb, c, d = q // 8, (q // 4) % 2, (q // 2) % 2, q % 2
+            for t in range(N_T):
+                ij = t // 4
+                I, J, K_, Lq = ij // 2, (ij + 1) // 2, (t // 2) % 2, t % 2
+                f = L[a, I] * L[bb, J] * L[c, K_] * L[d, Lq]
+                F[t, q] = SQRT2 * f if ij == 1 else f
         for t in range(N_T):
-            for p in range(NP2):
-                chi[t, p] = 0.0
-        # orthonormal components T_IJKL = L_aI L_bJ L_cK L_dL grad_d grad_c e_ab;
-        # T_IJKL = T_JIKL (e is symmetric), so |T|^2 sums IJ = 00, 11 once and
-        # IJ = 01 twice: component t = (IJ = 00 | 01 | 11, K, L) is scaled by
-        # sqrt(2) for IJ = 01 and the sums below run over N_T = 12 unweighted.
-        for a in range(2):
-            for bb in range(2):
-                for c in range(2):
-                    for d in range(2):
-                        _kappa2(a, bb, c, d, wk)
-                        for t in range(N_T):
-                            ij = t // 4
-                            I, J, K_, Lq = ij // 2, (ij + 1) // 2, (t // 2) % 2, t % 2
-                            f = L[a, I] * L[bb, J] * L[c, K_] * L[d, Lq]
-                            if ij == 1:
-                                f *= SQRT2
-                            if f != 0.0:
-                                for p in range(NP2):
-                                    chi[t, p] += f * k2[p]
-        _components(N_T, NP2, mode, wk)
+            s = 0.0
+            for q in range(16):
+                s += F[t, q] * s2[q]
+            val[t] = 0.5 * s
         w = C * wts[iq] * area
         for t in range(N_T):
             Re += w * val[t] * val[t]
         if mode == 0:
             continue
-        for t in range(N_T):
-            for k in range(9):
-                for j in range(3):
-                    ge[k, j] += 2.0 * w * val[t] * dval[t, k, j]
+        # the blocks' weights om = sum_t val_t chi_t, chi_t = sum_q F[t, q] (grad grad a)_q
+        for q in range(16):
+            s = 0.0
+            for t in range(N_T):
+                s += val[t] * F[t, q]
+            wq[q] = s
+        for p in range(NP2):
+            om[p] = 0.0
+        _nabla2_adjoint(wk, wq, om)
+        # d(sum_t w val_t^2) = 2 w d(om . P / 2)
+        _gradient_of(om, N_BASIS, wk, gq)
+        for k in range(9):
+            for j in range(3):
+                ge[k, j] += 2.0 * w * gq[k, j]
         if mode < 2:
             continue
-        _weighted_M(N_T, N_BASIS, val, wk)
+        for t in range(N_T):
+            for p in range(NP2):
+                chi[t, p] = 0.0
+            _nabla2_adjoint(wk, F[t], chi[t])
+        _component_gradients(N_T, NP2, wk)
+        _weighted_M(N_BASIS, wk)
         # Gauss-Newton part sum_t dval_t dval_t^T as axpys over contiguous
         # rows (upper triangle), then the second-derivative part 2 Mw (x) I3
         D = dval.reshape((dval.shape[0], 27))         # a view, (k, j) -> 3 k + j
@@ -457,7 +564,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
                         kep[q] += a * Dt[q]
         for kp in range(9):
             for kq in range(kp, 9):
-                m = 4.0 * w * Mw[kp, kq]
+                m = 4.0 * w * wk[40][kp, kq]
                 for j in range(3):
                     ke[3 * kp + j, 3 * kq + j] += m
     return Re
@@ -507,11 +614,10 @@ def _add_elements(lo, hi, mode, C, active, tri, X, T, U, G0n, bary, wts, order, 
 @njit(**KERNEL)
 def _edge_side(e, lam, frame, tri, G0n, mode, wk):
     """Projected first covariant derivatives (8) of the strain of triangle e
-    (loaded into wk) at lam, into val[:8] / dval[:8] of wk; chi[:8] keeps
-    their combination."""
-    gup, k1, chi = wk[36], wk[38], wk[40]
+    (loaded into wk) at lam, into val[:8] of wk; chi[:8] keeps their
+    combination of the blocks."""
+    gup, w1, chi = wk[33], wk[36], wk[37]
     _blocks(e, lam, tri, G0n, mode, False, wk)
-    _kappa1(wk)
     for t in range(8):
         al, be, ga = t // 4, (t // 2) % 2, t % 2
         for p in range(NP2):
@@ -521,10 +627,9 @@ def _edge_side(e, lam, frame, tri, G0n, mode, wk):
             for bb in range(2):
                 pb = _dot(gup[bb], frame[be])
                 for c in range(2):
-                    f = pa * pb * _dot(gup[c], frame[ga])
-                    for p in range(NP1):
-                        chi[t, p] += f * k1[a, bb, c, p]
-    _components(8, NP1, mode, wk)
+                    w1[4 * a + 2 * bb + c] = pa * pb * _dot(gup[c], frame[ga])
+        _nabla1_adjoint(wk, w1, chi[t])
+    _components(8, NP1, wk)
 
 
 @njit(cache=True)
@@ -557,28 +662,32 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
         _edge_side(edge_tri[j, 1], edge_lam[j, 1, g], edge_frame[j], tri, G0n, mode, wB)
         w = C * edge_w[j, g]
         for t in range(8):
-            J[t] = wA[41][t] - wB[41][t]
+            J[t] = wA[38][t] - wB[38][t]
             RE += w * J[t] * J[t]
         if mode == 0:
             continue
+        # d(w |J|^2) = 2 w sum_t J_t (d val_t(A) - d val_t(B)): per side
+        # the gradient of om . P / 2, om = sum_t J_t chi_t (kept for Mw below)
         for s in range(2):
             sg = 1.0 if s == 0 else -1.0
-            dval = sides[s][42]
+            wks = sides[s]
+            _combine(8, NP1, J, wks)
+            gq = wks[50]
+            _gradient_of(wks[43], 5, wks, gq)
             for k in range(9):
                 for jj in range(3):
-                    acc = 0.0
-                    for t in range(8):
-                        acc += J[t] * dval[t, k, jj]
-                    gs[s, k, jj] += 2.0 * w * sg * acc
+                    gs[s, k, jj] += 2.0 * w * sg * gq[k, jj]
         if mode < 2:
             continue
+        _component_gradients(8, NP1, wA)
+        _component_gradients(8, NP1, wB)
         # d J_t on the edge-node DOFs: Dn = dval(side A) - dval(side B)
         for t in range(8):
             for P1 in range(36):
                 Dn[t, P1] = 0.0
         for s1 in range(2):
             sg1 = 1.0 if s1 == 0 else -1.0
-            d1 = sides[s1][42]
+            d1 = sides[s1][39]
             for k1 in range(9):
                 o1 = 9 * edge_node[j, s1, k1 // 3] + 3 * (k1 % 3)
                 for j1 in range(3):
@@ -593,8 +702,8 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
         for s1 in range(2):
             sg1 = 1.0 if s1 == 0 else -1.0
             wk1 = sides[s1]
-            _weighted_M(8, 5, J, wk1)       # sum_t J_t d2 val_t = 2 Mw (x) I3 (this side)
-            Mw = wk1[43]
+            _weighted_M(5, wk1)             # sum_t J_t d2 val_t = 2 Mw (x) I3 (this side)
+            Mw = wk1[40]
             for k1 in range(9):
                 o1 = 9 * edge_node[j, s1, k1 // 3] + 3 * (k1 % 3)
                 for k2 in range(9):
