@@ -293,6 +293,32 @@ def test_dkt_term_has_exact_derivatives_and_vanishes_for_rigid_motions_and_unifo
         assert abs(s2.strain_gradient.per_element.sum()) < 1e-20, s2.strain_gradient.per_element.sum()
 
 
+def test_dkt_term_covariant_derivative_maps_are_transposes():
+    """The strain-gradient kernel applies the covariant derivatives of the
+    metric to the blocks (_nabla*_dot) and combines their rows with weights
+    (_nabla*_adjoint, for the gradient and the Hessian): the two must be
+    transposes, w . dot(x) = x . adjoint(w), at a curved, grown point."""
+    from shellritz import Shell, shapes
+    from shellritz.kernels import strain_gradient_dkt as k
+    rng = np.random.default_rng(3)
+    mesh = shapes.cylinder(16, 8, 1.0, 1.0, perturb=0.2)
+    sh = Shell(mesh, 0.6, LAW)
+    sh.set_growth(G0=np.eye(3) + 0.03 * rng.standard_normal((mesh.n_nodes, 3, 3)))
+    sh._setup()
+    sh.set_parameter(1.0)
+    wk = k._work()
+    k._load_element(5, mesh.triangles, sh.X, sh.frames, sh.U, wk)
+    k._third_derivative_map(wk)
+    k._blocks(5, np.array([0.2, 0.3, 0.5]), mesh.triangles, sh._Gt0, 1, True, wk)
+    assert np.abs(wk[31]).max() > 1e-3                  # curved: derivatives of the Christoffel symbols
+    for dot, adjoint, m in ((k._nabla1_dot, k._nabla1_adjoint, 8), (k._nabla2_dot, k._nabla2_adjoint, 16)):
+        x, w = rng.standard_normal(k.NP2), rng.standard_normal(m)
+        out, om = np.zeros(m), np.zeros(k.NP2)
+        dot(wk, x, out)
+        adjoint(wk, w, om)
+        assert abs(w @ out - x @ om) <= 1e-13 * np.abs(w).sum() * np.abs(x).sum(), (w @ out, x @ om)
+
+
 def test_strip_and_plate_hessians_are_positive_definite_at_every_mesh_size():
     """Clamped strip (plane strain) and plate (DKT), L = 2 h, compressive growth
     1.02 ... 1.25, flat state.  Without the term: negative eigenvalues from
