@@ -309,7 +309,8 @@ def test_dkt_term_covariant_derivative_maps_are_transposes():
     wk = k._work()
     k._load_element(5, mesh.triangles, sh.X, sh.frames, sh.U, wk)
     k._third_derivative_map(wk)
-    k._blocks(5, np.array([0.2, 0.3, 0.5]), mesh.triangles, sh._Gt0, 1, True, wk)
+    k._blocks(5, np.array([0.2, 0.3, 0.5]), mesh.triangles, sh._Gt0, 1, wk)
+    k._second_blocks(1, wk)
     assert np.abs(wk[31]).max() > 1e-3                  # curved: derivatives of the Christoffel symbols
     for dot, adjoint, m in ((k._nabla1_dot, k._nabla1_adjoint, 8), (k._nabla2_dot, k._nabla2_adjoint, 16)):
         x, w = rng.standard_normal(k.NP2), rng.standard_normal(m)

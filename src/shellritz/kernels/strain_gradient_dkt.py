@@ -173,18 +173,17 @@ def _basis_row(p, c):
 
 
 @njit(**KERNEL)
-def _blocks(e, lam, tri, G0n, mode, second, wk):
-    """The blocks P0, P1 (and P2 if second) at the barycentric point lam of
-    the loaded element, and the reference geometry there: A^-1, the
-    Christoffel symbols Gam[c, a, d] = Gamma^d_ca (and dGam[e, c, a, d] =
-    d_e Gamma^d_ca), L with L^T A L = I, the dual basis g^a."""
-    Q, gl, et, el, b, Cw, D3 = wk[2], wk[3], wk[4], wk[5], wk[6], wk[7], wk[11]
+def _blocks(e, lam, tri, G0n, mode, wk):
+    """The blocks P0, P1 at the barycentric point lam of the loaded element
+    (P2 zero: _second_blocks), and the reference geometry there: A^-1, the
+    Christoffel symbols Gam[c, a, d] = Gamma^d_ca, L with L^T A L = I, the
+    dual basis g^a."""
+    Q, gl, et, el, b, Cw = wk[2], wk[3], wk[4], wk[5], wk[6], wk[7]
     Xd, Xr = wk[8], wk[10]
     vd, vs, vR = wk[14], wk[15], wk[16]        # rows: r_1, r_2, r_11, r_12, r_22
-    td, ts, tR = wk[17], wk[18], wk[19]        # r_abc
-    G, dG, u, du, ddu, tmp = wk[20], wk[21], wk[22], wk[23], wk[24], wk[25]
+    G, dG, u, du, tmp = wk[20], wk[21], wk[22], wk[23], wk[25]
     P, V = wk[26], wk[27]
-    Ainv, Gam, dGam, L, gup, dAi = wk[29], wk[30], wk[31], wk[32], wk[33], wk[34]
+    Ainv, Gam, L, gup = wk[29], wk[30], wk[32], wk[33]
     point_map(lam, Q, gl, et, el, b, Cw)
     Bas = wk[44]
     for r in range(5):
@@ -202,14 +201,6 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
         for j in range(3):
             vs[r, j] = vd[r, j] + 2.0 * vR[r, j]
             V[r, j] = vd[r, j] + vR[r, j]
-    if second:
-        for p in range(3):
-            for c in range(2):
-                _apply(D3[p, c], Xd, td[p, c])
-                _apply(D3[p, c], Xr, tR[p, c])
-                for j in range(3):
-                    ts[p, c, j] = td[p, c, j] + 2.0 * tR[p, c, j]
-                    V[_basis_row(p, c), j] = td[p, c, j] + tR[p, c, j]
     # growth at the point, relative to node 0 (equal nodal values give dG = 0 exactly)
     for r in range(3):
         for c in range(3):
@@ -230,15 +221,6 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
             _mv(G, vR[2 + _pair(a, c)], du[a, c])
             for j in range(3):
                 du[a, c, j] += tmp[j]
-            if second:
-                for d in range(2):
-                    _mv(G, tR[_pair(a, c), d], ddu[a, c, d])
-                    _mv(dG[c], vR[2 + _pair(a, d)], tmp)
-                    for j in range(3):
-                        ddu[a, c, d, j] += tmp[j]
-                    _mv(dG[d], vR[2 + _pair(a, c)], tmp)
-                    for j in range(3):
-                        ddu[a, c, d, j] += tmp[j]
     for a in range(2):
         for bb in range(a, 2):
             _product(wk, _i0(a, bb), a, bb, vd[a], vs[a], vR[a],
@@ -250,22 +232,6 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
                          vd[bb], vs[bb], vR[bb], du[a, c], u[bb], mode)
                 _product(wk, i1, a, bc, vd[a], vs[a], vR[a],
                          vd[bc], vs[bc], vR[bc], u[a], du[bb, c], mode)
-                if not second:
-                    continue
-                for d in range(c, 2):
-                    ad, bd = 2 + _pair(a, d), 2 + _pair(bb, d)
-                    pac, pbc = ac - 2, bc - 2
-                    i2 = _i2(a, bb, c, d)
-                    _product(wk, i2, _basis_row(pac, d), bb, td[pac, d],
-                             ts[pac, d], tR[pac, d],
-                             vd[bb], vs[bb], vR[bb], ddu[a, c, d], u[bb], mode)
-                    _product(wk, i2, ac, bd, vd[ac], vs[ac], vR[ac],
-                             vd[bd], vs[bd], vR[bd], du[a, c], du[bb, d], mode)
-                    _product(wk, i2, ad, bc, vd[ad], vs[ad], vR[ad],
-                             vd[bc], vs[bc], vR[bc], du[a, d], du[bb, c], mode)
-                    _product(wk, i2, a, _basis_row(pbc, d), vd[a], vs[a],
-                             vR[a], td[pbc, d], ts[pbc, d], tR[pbc, d], u[a],
-                             ddu[bb, c, d], mode)
     # reference metric, dual basis, orthonormalizing L = C^-T (A = C C^T)
     A00, A01, A11 = _dot(vR[0], vR[0]), _dot(vR[0], vR[1]), _dot(vR[1], vR[1])
     det = A00 * A11 - A01 * A01
@@ -283,8 +249,53 @@ def _blocks(e, lam, tri, G0n, mode, second, wk):
             for d in range(2):
                 Rca = vR[2 + _pair(c, a)]
                 Gam[c, a, d] = Ainv[d, 0] * _dot(Rca, vR[0]) + Ainv[d, 1] * _dot(Rca, vR[1])
-    if not second:
-        return
+
+
+@njit(**KERNEL)
+def _second_blocks(mode, wk):
+    """After _blocks at the same point: the blocks P2 (second derivatives of
+    a_ab, with r_abc from _third_derivative_map) and the derivatives of the
+    Christoffel symbols dGam[e, c, a, d] = d_e Gamma^d_ca."""
+    D3, Xd, Xr = wk[11], wk[8], wk[10]
+    vd, vs, vR = wk[14], wk[15], wk[16]
+    td, ts, tR = wk[17], wk[18], wk[19]        # r_abc
+    G, dG, u, du, ddu, tmp = wk[20], wk[21], wk[22], wk[23], wk[24], wk[25]
+    V, Ainv, dGam, dAi = wk[27], wk[29], wk[31], wk[34]
+    for p in range(3):
+        for c in range(2):
+            _apply(D3[p, c], Xd, td[p, c])
+            _apply(D3[p, c], Xr, tR[p, c])
+            for j in range(3):
+                ts[p, c, j] = td[p, c, j] + 2.0 * tR[p, c, j]
+                V[_basis_row(p, c), j] = td[p, c, j] + tR[p, c, j]
+    for a in range(2):
+        for c in range(2):
+            for d in range(2):
+                _mv(G, tR[_pair(a, c), d], ddu[a, c, d])
+                _mv(dG[c], vR[2 + _pair(a, d)], tmp)
+                for j in range(3):
+                    ddu[a, c, d, j] += tmp[j]
+                _mv(dG[d], vR[2 + _pair(a, c)], tmp)
+                for j in range(3):
+                    ddu[a, c, d, j] += tmp[j]
+    for a in range(2):
+        for bb in range(a, 2):
+            for c in range(2):
+                ac, bc = 2 + _pair(a, c), 2 + _pair(bb, c)
+                for d in range(c, 2):
+                    ad, bd = 2 + _pair(a, d), 2 + _pair(bb, d)
+                    pac, pbc = ac - 2, bc - 2
+                    i2 = _i2(a, bb, c, d)
+                    _product(wk, i2, _basis_row(pac, d), bb, td[pac, d],
+                             ts[pac, d], tR[pac, d],
+                             vd[bb], vs[bb], vR[bb], ddu[a, c, d], u[bb], mode)
+                    _product(wk, i2, ac, bd, vd[ac], vs[ac], vR[ac],
+                             vd[bd], vs[bd], vR[bd], du[a, c], du[bb, d], mode)
+                    _product(wk, i2, ad, bc, vd[ad], vs[ad], vR[ad],
+                             vd[bc], vs[bc], vR[bc], du[a, d], du[bb, c], mode)
+                    _product(wk, i2, a, _basis_row(pbc, d), vd[a], vs[a],
+                             vR[a], td[pbc, d], ts[pbc, d], tR[pbc, d], u[a],
+                             ddu[bb, c, d], mode)
     # d_e Gamma^d_ca = d_e A^{db} Gamma_{ca,b} + A^{db} (R_cae . R_b + R_ca . R_be),
     # d_e A^{db} = -A^{dg} (R_eg . R_h + R_g . R_eh) A^{hb}
     for ee in range(2):
@@ -504,7 +515,8 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
     zero_element(mode, ge, ke)
     Re = 0.0
     for iq in range(bary.shape[0]):
-        _blocks(e, bary[iq], tri, G0n, mode, True, wk)
+        _blocks(e, bary[iq], tri, G0n, mode, wk)
+        _second_blocks(mode, wk)
         # orthonormal components T_IJKL = L_aI L_bJ L_cK L_dL grad_d grad_c e_ab
         # = sum_q F[t, q] s2[q] / 2 (s2 = grad grad a of the blocks P);
         # T_IJKL = T_JIKL (e is symmetric), so |T|^2 sums IJ = 00, 11 once
@@ -617,7 +629,7 @@ def _edge_side(e, lam, frame, tri, G0n, mode, wk):
     (loaded into wk) at lam, into val[:8] of wk; chi[:8] keeps their
     combination of the blocks."""
     gup, w1, chi = wk[33], wk[36], wk[37]
-    _blocks(e, lam, tri, G0n, mode, False, wk)
+    _blocks(e, lam, tri, G0n, mode, wk)
     for t in range(8):
         al, be, ga = t // 4, (t // 2) % 2, t % 2
         for p in range(NP2):
@@ -630,11 +642,6 @@ def _edge_side(e, lam, frame, tri, G0n, mode, wk):
                     w1[4 * a + 2 * bb + c] = pa * pb * _dot(gup[c], frame[ga])
         _nabla1_adjoint(wk, w1, chi[t])
     _components(8, NP1, wk)
-
-
-@njit(cache=True)
-def _edge_work():
-    return _work(), _work(), np.zeros(8), np.zeros((36, 36)), np.zeros((2, 9, 3)), np.zeros((8, 36))
 
 
 @njit(**KERNEL)
@@ -740,7 +747,7 @@ def add_dkt_edge_strain_gradient(mode, C, tri, X, T, U, G0n, edge_tri, edge_lam,
 def _add_edges(lo, hi, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge_w, edge_frame,
                edge_node, edge_local, edge_oo, order, hmap, RE, G, data):
     """The edges order[lo:hi] of add_dkt_edge_strain_gradient."""
-    ew = _edge_work()
+    ew = (_work(), _work(), np.zeros(8), np.zeros((36, 36)), np.zeros((2, 9, 3)), np.zeros((8, 36)))
     eoff = hmap[3]
     for jo in range(lo, hi):
         j = order[jo]
