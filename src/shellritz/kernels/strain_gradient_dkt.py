@@ -30,8 +30,10 @@ u = Bas[iu] . X).  The gradient of a weighted sum of blocks, om . P, is
 never formed block by block: with the vectors V = Bas . X of the point,
 d(om . P)/dX = 2 Bas^T Z(om), Z(om)[iu] += om[idx] V[iv] / 2 and
 Z(om)[iv] += om[idx] V[iu] / 2 over the listed products (_gradient_of):
-the gradient of the energy is one such map (om = sum_t val_t chi_t), the
-Hessian's Gauss-Newton part one per component.
+the gradient of the energy is one such map (om = sum_t val_t chi_t).  The
+Hessian's Gauss-Newton part needs the gradient of every component: there
+the blocks' gradients are formed once from the same list and combined by
+contiguous axpys (_component_gradients).
 """
 
 import numpy as np
