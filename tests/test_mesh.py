@@ -30,6 +30,19 @@ def test_non_triangle_cells_are_named(tmp_path):
         Mesh.read(path)
 
 
+def test_empty_zero_normals_and_corrupt_files(tmp_path):
+    with pytest.raises(MeshError, match="the mesh has no triangles"):
+        Mesh(np.zeros((0, 3)), np.zeros((0, 3), int))
+    with pytest.raises(MeshError, match="normal\\(X\\) is the zero vector at vertices 0, 1, 2, 3"):
+        Mesh(*SQUARE, normal=lambda X: np.zeros_like(X))
+    for name, content in (("garbage.vtu", b"not a mesh at all"), ("empty.vtu", b""),
+                          ("garbage.stl", b"solid x\nfacet broken\n")):
+        path = tmp_path / name
+        path.write_bytes(content)
+        with pytest.raises(MeshError, match=f"{name}: cannot read it as a mesh"):
+            Mesh.read(path)          # meshio's sys.exit on some of them must not end the caller
+
+
 def test_nan_coordinates():
     X = SQUARE[0].copy()
     X[2, 1] = np.nan

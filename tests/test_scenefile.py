@@ -45,6 +45,11 @@ def surface(n=4):
     ("[[boundary.pin]]\nnodes = {loop = 0}\nstiffness = 3", "[[boundary.pin]] #1: unknown key 'stiffness'"),
     ("[growth]\nG0 = 1.1\nstretches = [1, 1, 1]", "give one form of growth"),
     ("[growth]\nabar = {array = 'a'}", "'abar' and 'bbar' go together"),
+    ("[solver]\nmax_escapes = -1", "[solver]: max_escapes must be at least 0, got -1"),
+    ("[solver]\nsteps = 0", "[solver]: steps must be at least 1, got 0"),
+    ("[solver]\nmin_dt = 0.0", "[solver]: min_dt must be in (0, 1), got 0.0"),
+    ("[solver]\nrtol = -1e-9", "[solver]: rtol must be in (0, inf), got -1e-09"),
+    ("[solver]\nlinear = 'mumps'", "[solver]: unknown linear solver 'mumps'"),
 ])
 def test_invalid_scene_files_name_the_key(text, message):
     with pytest.raises(SceneError) as exc:

@@ -133,6 +133,102 @@ def test_bad_input_is_rejected_with_a_clear_message():
         Shell(mesh, 0.1, "rubber")
 
 
+def test_bad_loads_supports_and_node_selections_are_named():
+    """Non-finite loads and prescribed rotations are refused where they are
+    given (not at the solve); a boolean mask selects its nodes, float
+    indices that are not integers are refused."""
+    from shellritz.shell import _nodes
+    mesh = shapes.rectangle(3, 3)
+    s = Shell(mesh, 0.02, LAW)
+    with pytest.raises(ValueError, match=r"point_force: force: non-finite value at index \(0, 2\)"):
+        s.point_force([5], [0, 0, np.nan])
+    with pytest.raises(ValueError, match="edge_load: traction: non-finite"):
+        s.edge_load(mesh.nodes_on_plane("x", 1.0), [np.inf, 0, 0])
+    with pytest.raises(ValueError, match="q_plus: non-finite"):
+        s.face_tractions(q_plus=[0, 0, np.nan])
+    with pytest.raises(ValueError, match="rotation: non-finite"):
+        s.clamp([0], rotation=[np.nan, 0, 0])
+    with pytest.raises(ValueError, match="position: expected numbers broadcastable to shape"):
+        s.clamp([0, 1], position=[[0, 0, 0]] * 3)
+    mask = mesh.vertices[:, 0] < 1e-9
+    np.testing.assert_array_equal(_nodes(mask, mesh.n_nodes), np.flatnonzero(mask))
+    with pytest.raises(ValueError, match="one entry per node"):
+        _nodes(mask[:-1], mesh.n_nodes)
+    with pytest.raises(ValueError, match="must be integers"):
+        _nodes([2.7, 3.2], mesh.n_nodes)
+    np.testing.assert_array_equal(_nodes([3.0, 2.0], mesh.n_nodes), [2, 3])
+
+
+def test_solver_options_are_checked_before_solving():
+    """Out-of-range or mistyped options fail at once with their name (a
+    negative max_escapes used to skip Newton and report converged)."""
+    s = Shell(shapes.rectangle(2, 2), 0.02, LAW)
+    for options, error, message in [
+            (dict(max_escapes=-1), ValueError, "max_escapes must be at least 0, got -1"),
+            (dict(steps=0), ValueError, "steps must be at least 1, got 0"),
+            (dict(steps=2.5), TypeError, "steps must be an integer"),
+            (dict(min_dt=0.0), ValueError, r"min_dt must be in \(0, 1\)"),
+            (dict(max_iter=2.5), TypeError, "max_iter must be an integer"),
+            (dict(max_iter=True), TypeError, "max_iter must be an integer"),
+            (dict(rtol="1e-9"), TypeError, "rtol must be a number"),
+            (dict(xtol=np.nan), ValueError, r"xtol must be in \[0, inf\)"),
+            (dict(armijo=5.0), ValueError, r"armijo must be in \(0, 1\)"),
+            (dict(arc_ds=-0.1), ValueError, "arc_ds must be in"),
+            (dict(escape="no"), TypeError, "escape must be True or False"),
+            (dict(monitor="abc"), TypeError, "monitor must be node indices"),
+            (dict(monitor=[999]), ValueError, "monitor: node indices outside the mesh")]:
+        with pytest.raises(error, match=message):
+            s.solve(verbose=False, **options)
+
+
+def test_growth_undefined_partway_keeps_the_converged_steps():
+    """G0 = diag(-1, -1, 1) is admissible at t = 1 (det 1) but its ramp
+    I + t (G0 - I) is singular at t = 0.5: the solve stops there with a
+    SolveError that names t and hands back the state of t = 0.25."""
+    mesh = shapes.rectangle(4, 4)
+    s = Shell(mesh, 0.02, LAW)
+    s.clamp(mesh.nodes_on_plane("x", 0.0))
+    s.set_growth(G0=np.diag([-1.0, -1.0, 1.0]))
+    with pytest.raises(SolveError, match=r"not defined at t = 0.5: .*det G0 <= 0.*t = 0.25\) is kept") as info:
+        s.solve(steps=4, max_dt=0.25, verbose=False)
+    result = info.value.result
+    assert result.t == 0.25 and result.converged is False
+    assert np.isfinite(result.energy) and np.abs(result.r - mesh.vertices).max() > 0.1   # it shrank
+
+
+def test_an_unsupported_shell_under_a_net_load_says_why():
+    mesh = shapes.rectangle(3, 3)
+    s = Shell(mesh, 0.02, LAW)
+    s.point_force([5], [0, 0, 1e-5])
+    with pytest.raises(ValueError, match=r"no supports \(free rigid motions\) but its loads have a net force"):
+        s.solve(verbose=False)
+    s.point_force([6], [0, 0, -1e-5])      # balanced (a net moment remains: Newton's to find out)
+    s._check_solvable()
+
+
+def test_a_failed_linear_solve_keeps_the_last_converged_state(monkeypatch):
+    """A LinearSolverError in the second load step becomes a SolveError
+    with the state of the first (not a bare linear-algebra error)."""
+    import shellritz.solve as solve
+    from shellritz.linalg import LinearSolverError
+    real, calls = solve.minimize, []
+
+    def failing(problem, t, *args, **kwargs):
+        calls.append(t)
+        if len(calls) == 3:                 # t = 0, 0.5, then 1
+            raise LinearSolverError("injected")
+        return real(problem, t, *args, **kwargs)
+    monkeypatch.setattr(solve, "minimize", failing)
+    mesh = shapes.rectangle(4, 1, lx=1.0, ly=0.25)
+    s = Shell(mesh, 0.02, LAW)
+    s.clamp(mesh.nodes_on_plane("x", 0.0))
+    s.point_force(mesh.nodes_on_plane("x", 1.0), [0, 0, 1e-7])
+    with pytest.raises(SolveError, match=r"t = 1: the linear solver failed \(injected\); the last "
+                                         r"converged state \(t = 0.5\) is kept") as info:
+        s.solve(steps=2, max_dt=0.5, verbose=False)
+    assert info.value.result.t == 0.5 and info.value.result.r[:, 2].max() > 0
+
+
 def test_failure_keeps_the_last_converged_state():
     """A cantilever rolled up by an end rotation of 2 pi, with Newton allowed
     only 3 iterations per step and steps no smaller than 0.02: the

@@ -490,7 +490,7 @@ def test_options_are_checked_with_clear_errors():
         shell.solve(reuse_factorization="sometimes", verbose=False)
     with pytest.raises(TypeError, match="unknown option.*tolerance.*the options are .*rtol"):
         shell.solve(tolerance=1e-8, verbose=False)
-    with pytest.raises(ValueError, match="rtol must be positive"):
+    with pytest.raises(ValueError, match=r"rtol must be in \(0, inf\), got -1.0"):
         shell.solve(rtol=-1.0, verbose=False)
     with pytest.raises(ValueError, match="factor_precision='half': choose one of double, single"):
         shell.solve(factor_precision="half", verbose=False)

@@ -63,11 +63,17 @@ def read_mesh(path):
         triangles = np.concatenate(tris)
     except MeshError:
         raise
-    except Exception:
+    except (Exception, SystemExit) as exc:      # meshio calls sys.exit on some corrupt files
         import trimesh
-        tm = trimesh.load(path, force="mesh", process=False)
+        try:
+            tm = trimesh.load(path, force="mesh", process=False)
+        except Exception as exc2:
+            raise MeshError(f"{path}: cannot read it as a mesh (meshio: {exc or type(exc).__name__}; "
+                            f"trimesh: {exc2})") from None
         points = np.asarray(tm.vertices, dtype=np.float64)
         triangles = np.asarray(tm.faces)
+    if len(points) == 0 or len(triangles) == 0:
+        raise MeshError(f"{path}: cannot read it as a mesh (no triangles in it)")
     if path.suffix.lower() == ".stl":
         points, triangles = _merge_coincident(points, triangles)
     return points, triangles
@@ -128,6 +134,8 @@ class Mesh:
             if not np.all(tri == np.round(tri)):
                 raise MeshError("triangle indices must be integers")
         tri = tri.astype(np.int64)
+        if len(tri) == 0:
+            raise MeshError("the mesh has no triangles")
         bad = np.where(~np.all(np.isfinite(X), axis=1))[0]
         if len(bad):
             raise MeshError(f"non-finite coordinates at vertices {_list(bad)}")
@@ -158,7 +166,11 @@ class Mesh:
             N = np.asarray(normal(X), dtype=np.float64)
             if N.shape != X.shape or not np.all(np.isfinite(N)):
                 raise MeshError("normal(X) must return finite (n, 3) normals")
-            N = N / np.linalg.norm(N, axis=1)[:, None]
+            length = np.linalg.norm(N, axis=1)
+            zero = np.where(~(length > 0))[0]
+            if len(zero):
+                raise MeshError(f"normal(X) is the zero vector at vertices {_list(zero)}")
+            N = N / length[:, None]
             P = X[tri]
             fn = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
             flipped = np.where((np.einsum("ij,ij->i", fn, N[tri].mean(axis=1)) <= 0))[0]

@@ -39,10 +39,34 @@ __all__ = ["Shell", "Result"]
 
 
 def _nodes(nodes, n):
-    idx = np.unique(np.asarray(nodes, dtype=np.int64).ravel())
+    """Node indices (integers) or a boolean mask over the n nodes -> sorted indices."""
+    a = np.asarray(nodes)
+    if a.dtype == bool:
+        if a.shape != (n,):
+            raise ValueError(f"a boolean node mask must have one entry per node ({n}), got shape {a.shape}")
+        return np.flatnonzero(a)
+    if a.size and not np.issubdtype(a.dtype, np.integer):
+        if not (np.issubdtype(a.dtype, np.number) and np.all(np.isfinite(a)) and np.all(a == np.round(a))):
+            raise ValueError(f"node indices must be integers (or a boolean mask), got {a.ravel()[:8]}")
+    idx = np.unique(a.astype(np.int64).ravel())
     if len(idx) and (idx.min() < 0 or idx.max() >= n):
         raise ValueError(f"node indices outside 0..{n - 1}: {idx[(idx < 0) | (idx >= n)][:8]}")
     return idx
+
+
+def _finite(value, shape, name):
+    """``value`` as a float array broadcast to ``shape``, every entry finite."""
+    try:
+        a = np.broadcast_to(np.asarray(value, dtype=np.float64), shape)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected numbers broadcastable to shape {shape} ({exc})") from None
+    bad = np.argwhere(~np.isfinite(a))
+    if len(bad) and a.ndim == 0:
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if len(bad):
+        raise ValueError(f"{name}: non-finite value at index {tuple(int(i) for i in bad[0])} "
+                         f"({len(bad)} in all)")
+    return a
 
 
 def _rotvec_to_matrix(w):
@@ -217,15 +241,13 @@ class Shell(Solvable):
         n = self.mesh.n_nodes
         idx = _nodes(nodes, n)
         X0 = self.X[idx]
-        target = X0 if position is None else np.broadcast_to(np.asarray(position, float), X0.shape)
-        if not np.all(np.isfinite(target)):
-            raise ValueError("non-finite prescribed positions")
+        target = X0 if position is None else _finite(position, X0.shape, "position")
         if rotation is None:
             rot = lambda t: np.eye(3)
         elif callable(rotation):
             rot = rotation
         else:
-            w = np.asarray(rotation, float)
+            w = _finite(rotation, (3,), "rotation").copy()
             rot = lambda t: _rotvec_to_matrix(t * w)
         if not components or set(components) - set("xyz") or len(set(components)) != len(components):
             raise ValueError(f"components must be distinct letters of 'xyz', got {components!r}")
@@ -417,7 +439,7 @@ class Shell(Solvable):
     def point_force(self, nodes, force):
         """Forces on node positions (dead, ramped with t)."""
         idx = _nodes(nodes, self.mesh.n_nodes)
-        F = np.broadcast_to(np.asarray(force, float), (len(idx), 3))
+        F = _finite(force, (len(idx), 3), "point_force: force")
         np.add.at(self._f_nodes, idx, F)
         return self
 
@@ -432,7 +454,7 @@ class Shell(Solvable):
             raise ValueError("edge_load: no boundary edge has both ends in the given nodes")
         X = self.X
         mid = 0.5 * (X[E[:, 0]] + X[E[:, 1]])
-        p = traction(mid) if callable(traction) else np.broadcast_to(np.asarray(traction, float), mid.shape)
+        p = _finite(traction(mid) if callable(traction) else traction, mid.shape, "edge_load: traction")
         length = np.linalg.norm(X[E[:, 1]] - X[E[:, 0]], axis=1)
         for k in range(2):
             np.add.at(self._f_nodes, E[:, k], 0.5 * length[:, None] * p)
@@ -447,7 +469,8 @@ class Shell(Solvable):
                 continue
             if callable(val):
                 val = val(self.X, self.mesh.normals)
-            setattr(self, attr, _field(val, n, (3,), attr[1:]))
+            q = _field(val, n, (3,), attr[1:])
+            setattr(self, attr, _finite(q, q.shape, attr[1:]).copy())
         return self
 
     def pressure(self, p, face="middle"):
@@ -457,9 +480,7 @@ class Shell(Solvable):
         volume of the middle surface (first order in h).  p > 0 pushes along
         the normal (inflates a closed surface with outward normals).  Closed
         surfaces or surfaces with fixed edges."""
-        if not np.isfinite(p):
-            raise ValueError("pressure must be finite")
-        self._pressure = float(p)
+        self._pressure = float(_finite(p, (), "pressure"))
         pressure_face(face, self.h)        # checks the name
         self._pressure_face = face
         return self
@@ -557,6 +578,18 @@ class Shell(Solvable):
                 hq = mup * (lam @ self._q_plus[nodes]) + mum * (lam @ self._q_minus[nodes])
                 f[nodes] += (wq * area * jac) * np.outer(lam, hq)
         return f
+
+    def _check_solvable(self):
+        """Refuse a shell without any fixed DOF (free rigid motions) whose dead
+        loads have a net force: it has no equilibrium (solve)."""
+        if self._fixed.any() or self._pressure:
+            return
+        f = self._f_nodes + self._f_faces
+        net = f.sum(axis=0)
+        if np.linalg.norm(net) > 1e-10 * max(np.abs(f).sum(), 1e-300):
+            raise ValueError(f"the shell has no supports (free rigid motions) but its loads have a net "
+                             f"force {np.array2string(net, precision=4)}: no equilibrium; clamp or pin "
+                             f"nodes, or balance the loads")
 
     # ------------------------------------------------------------------ problem protocol
     def set_parameter(self, t):

@@ -129,12 +129,46 @@ class SolverOptions:
         if self.factor_precision == "single" and self.path == "arclength":
             raise ValueError("factor_precision='single' with path='arclength': arc length finds "
                              "its folds from the inertia of every factorization; use 'double'")
-        if self.max_dt is not None and not (np.isfinite(self.max_dt) and 0 < self.max_dt <= 1):
-            raise ValueError(f"max_dt must be in (0, 1], got {self.max_dt!r}")
-        for name in ("rtol", "max_iter", "max_cg", "arc_max_steps"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive, got {v!r}")
+        for name in ("verbose", "escape"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        for name, low in (("max_iter", 1), ("max_cg", 1), ("arc_max_steps", 1),
+                          ("max_escapes", 0), ("watchdog", 0)):
+            checked_int(name, getattr(self, name), low)
+        for name, low, high, optional in (("rtol", 0, None, False), ("xtol", 0, None, False),
+                                          ("ftol", 0, None, False), ("armijo", 0, 1, False),
+                                          ("min_alpha", 0, 1, False), ("max_dt", 0, 1, True),
+                                          ("arc_ds", 0, None, True), ("arc_max_ds", 0, None, True)):
+            value = getattr(self, name)
+            if not (optional and value is None):
+                checked_float(name, value, low, high, zero_ok=name in ("xtol", "ftol"),
+                              high_ok=name == "max_dt")
+        if self.stop is not None and not callable(self.stop):
+            raise TypeError(f"stop must be a callable(path point) or None, got {self.stop!r}")
+
+
+def checked_int(name, value, low):
+    """``value`` as an int >= low (bools and non-integral numbers refused)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    if value < low:
+        raise ValueError(f"{name} must be at least {low}, got {value!r}")
+    return int(value)
+
+
+def checked_float(name, value, low, high=None, zero_ok=False, high_ok=False):
+    """``value`` as a finite float in (low, high) (``zero_ok``: low
+    included; ``high_ok``: high included; high None: no upper bound)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    value = float(value)
+    above = value >= low if zero_ok else value > low
+    below = high is None or (value <= high if high_ok else value < high)
+    if not (np.isfinite(value) and above and below):
+        interval = (("[" if zero_ok else "(") + f"{low:g}, "
+                    + ("inf)" if high is None else f"{high:g}" + ("]" if high_ok else ")")))
+        raise ValueError(f"{name} must be in {interval}, got {value!r}")
+    return value
 
 
 @dataclass
@@ -928,6 +962,21 @@ class _Counted:
         self._history.evaluations[mode] += 1
         return self._problem.evaluate(x, mode)
 
+    def set_parameter(self, t):
+        """The problem at t; where the scene is not defined there (growth
+        that inverts or is not finite, ...) a SolveError that keeps the last
+        converged state, the parameter set back to its t."""
+        try:
+            self._problem.set_parameter(t)
+        except ValueError as exc:
+            done = [s for s, ok in self._history.steps if ok]
+            last = done[-1] if done else None
+            if last is not None:
+                self._problem.set_parameter(last)
+            raise SolveError(f"the scene is not defined at t = {t:.6g}: {exc}"
+                             + ("" if last is None else f"; the last converged state (t = {last:.6g}) is kept"),
+                             last_t=last, history=self._history) from exc
+
 
 def continuation(problem, steps=1, opts=None, min_dt=1e-4, t_start=0.0, force_scale=0.0):
     """Follow the equilibrium from t_start to 1: adaptive steps in t
@@ -958,7 +1007,11 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
     t = t_start
     problem.set_parameter(t)
     g_ref = max(problem.load_scale(), force_scale)
-    if not equilibrium(problem, t, opts, history, g_ref, lin):
+    try:
+        found = equilibrium(problem, t, opts, history, g_ref, lin)
+    except LinearSolverError as exc:
+        raise SolveError(_linear_failure(exc, t, lin), last_t=None, history=history) from exc
+    if not found:
         raise SolveError(f"no equilibrium at the start t={t}", last_t=None, history=history)
     history.steps.append((t, True))
     if opts.path == "arclength":
@@ -990,7 +1043,13 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
         # tangent; else the gradient at the start of the step stands for it,
         # which a good predictor makes far too small)
         g_step = max(g_ref, problem.load_scale(), dt * here.gt_norm)
-        ok = equilibrium(problem, t_new, opts, history, g_step, lin, may_cut=0.5 * dt >= min_dt)
+        try:
+            ok = equilibrium(problem, t_new, opts, history, g_step, lin, may_cut=0.5 * dt >= min_dt)
+        except LinearSolverError as exc:
+            problem.restore_point(saved)
+            problem.set_parameter(t)
+            raise SolveError(_linear_failure(exc, t_new, lin) + f"; the last converged state "
+                             f"(t = {t:.6g}) is kept", last_t=t, history=history) from exc
         history.steps.append((t_new, ok))
         if ok:
             prev, here, failed_here = here, None, False
@@ -1001,6 +1060,13 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
             failed_here = True
             dt = _step_back(problem, saved, t, dt, min_dt, opts, history, "step")
     return history
+
+
+def _linear_failure(exc, t, lin):
+    """The message of a linear solve that failed at t (SolveError)."""
+    hint = ("; the shell has free rigid motions (no supports): under loads with a net force or "
+            "moment it has no equilibrium (clamp or pin it)" if lin.rigid is not None else "")
+    return f"t = {t:.6g}: the linear solver failed ({exc}){hint}"
 
 
 class _PathPoint(NamedTuple):
@@ -1252,7 +1318,11 @@ def _riks_corrector(problem, x0, t0, tau_x, tau_t, ds, L2, opts, history, lin, g
     t = t0 + ds * tau_t
     for it in range(opts.max_iter):
         tic = time.perf_counter()
-        problem.set_parameter(t)
+        try:
+            problem.set_parameter(t)
+        except SolveError as exc:          # not defined at t: a smaller arc step (as inadmissible)
+            history.notes.append(f"arc length corrector: {exc}")
+            return False, x, t, it
         problem.set_free_state(x)
         try:
             E, g, K = problem.evaluate(x, 2)
@@ -1366,13 +1436,27 @@ class Solvable:
             raise TypeError(f"solve() got unknown option(s) {', '.join(unknown)}; "
                             f"the options are {', '.join(sorted(known))}")
         opts = SolverOptions(verbose=verbose, **options)
+        checked_int("steps", steps, 1)
+        checked_float("min_dt", min_dt, 0, 1)
+        if not (monitor is None or callable(monitor)):
+            nodes = np.atleast_1d(np.asarray(monitor))
+            if not np.issubdtype(nodes.dtype, np.integer):
+                raise TypeError(f"monitor must be node indices (integers) or a callable(engine), got {monitor!r}")
         if thickness_path is not None:
             return self._solve_through_thicknesses(thickness_path, steps, verbose, min_dt, monitor,
                                                    start, options)
         self._setup()
+        check = getattr(self, "_check_solvable", None)       # engines that can tell at once
+        if check is not None:
+            check()
         t_start, force_scale = (0.0, 0.0) if start is None else self._start_from(start)
         self._monitor = (monitor if monitor is None or callable(monitor)
                          else np.atleast_1d(np.asarray(monitor, int)))
+        if self._monitor is not None and not callable(self._monitor):
+            try:
+                self._node_positions(self._monitor)
+            except IndexError:
+                raise ValueError(f"monitor: node indices outside the mesh: {monitor!r}") from None
         t0 = time.perf_counter()
         if verbose:
             print(self._describe(), flush=True)
