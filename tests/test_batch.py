@@ -151,6 +151,9 @@ def test_usage_errors_exit_2(tmp_path, scene, capsys):
     assert main(["convert", str(tmp_path / "a" / "x.vtu"), str(tmp_path / "b" / "x.vtu"),
                  "-o", str(tmp_path / "o"), "--scene", str(scene)]) == 2
     assert "same stem" in capsys.readouterr().err
+    assert main(["convert", str(tmp_path / "a" / "x.vtu"), "-o", str(tmp_path / "a" / "x.vtu"),
+                 "--scene", str(scene)]) == 2
+    assert "is an existing file" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         main(["convert", "--bogus"])
     assert exc.value.code == 2

@@ -43,6 +43,18 @@ def test_empty_zero_normals_and_corrupt_files(tmp_path):
             Mesh.read(path)          # meshio's sys.exit on some of them must not end the caller
 
 
+def test_slivers_are_refused_poor_triangles_and_coincident_vertices_warned():
+    X = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-8, 0], [0.5, -1, 0.0]])
+    with pytest.raises(MeshError, match=r"nearly degenerate triangles 0: shape quality 2.31e-08"):
+        Mesh(X, [[0, 1, 2], [0, 3, 1]])
+    X[2, 1] = 1e-3
+    with pytest.warns(UserWarning, match=r"1 poorly shaped triangles \(0\), shape quality down to 2.31e-03"):
+        Mesh(X, [[0, 1, 2], [0, 3, 1]])
+    V, T = SQUARE
+    with pytest.warns(UserWarning, match=r"4 vertices share a position with another \(0, 2, 3, 4\)"):
+        Mesh(V[T.ravel()], np.arange(6).reshape(2, 3))      # two triangles, not connected
+
+
 def test_nan_coordinates():
     X = SQUARE[0].copy()
     X[2, 1] = np.nan

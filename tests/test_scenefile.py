@@ -45,6 +45,7 @@ def surface(n=4):
     ("[[boundary.pin]]\nnodes = {loop = 0}\nstiffness = 3", "[[boundary.pin]] #1: unknown key 'stiffness'"),
     ("[growth]\nG0 = 1.1\nstretches = [1, 1, 1]", "give one form of growth"),
     ("[growth]\nabar = {array = 'a'}", "'abar' and 'bbar' go together"),
+    ("[output]\nname = '../elsewhere/leaf'", "[output] name: a file name without folders"),
     ("[solver]\nmax_escapes = -1", "[solver]: max_escapes must be at least 0, got -1"),
     ("[solver]\nsteps = 0", "[solver]: steps must be at least 1, got 0"),
     ("[solver]\nmin_dt = 0.0", "[solver]: min_dt must be in (0, 1), got 0.0"),

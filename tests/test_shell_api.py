@@ -131,6 +131,14 @@ def test_bad_input_is_rejected_with_a_clear_message():
         Shell(mesh, 0.1, LAW, membrane="cst")
     with pytest.raises(TypeError):
         Shell(mesh, 0.1, "rubber")
+    with pytest.raises(TypeError, match="thickness must be a number, got '0.1'"):
+        Shell(mesh, "0.1", LAW)
+    with pytest.raises(ValueError, match="axis must be 'x', 'y', 'z' or 0, 1, 2, got 'q'"):
+        s.symmetry("q")
+    with pytest.raises(ValueError, match="axis must be .* got 5"):
+        s.diaphragm(mesh.boundary_nodes(), 5)
+    with pytest.raises(ValueError, match=r"function\(t\) must return \(G0, G1\) nodal arrays"):
+        s.set_growth(function=lambda t: 1.0)
 
 
 def test_bad_loads_supports_and_node_selections_are_named():

@@ -282,6 +282,8 @@ def run_batch(inputs, out_dir, scene_text, scene_dir=".", scene_name="scene", fm
 
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise BatchError(f"the output folder {out_dir} is an existing file")
     out_dir.mkdir(parents=True, exist_ok=True)
     for stale in out_dir.glob(".*.part"):           # temporary files of an interrupted run
         stale.unlink(missing_ok=True)

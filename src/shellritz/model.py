@@ -54,6 +54,8 @@ def pressure_face(face, h):
 
 
 def check_thickness(h):
+    if isinstance(h, (bool, np.bool_)) or not isinstance(h, (int, float, np.integer, np.floating)):
+        raise TypeError(f"thickness must be a number, got {h!r}")
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"thickness h={h!r} must be a finite positive number")
     return float(h)

@@ -210,6 +210,10 @@ def _check_output(table):
     for k in ("name", "format"):
         if k in table and not isinstance(table[k], str):
             raise SceneError(f"[output] {k}: expected a string, got {table[k]!r}")
+    name = table.get("name")
+    if name is not None and (not name or name in (".", "..") or any(c in name for c in "/\\")):
+        raise SceneError(f"[output] name: a file name without folders, got {name!r} "
+                         "(the output folder is the command line's)")
     if "format" in table:
         try:
             file_format("x." + table["format"].lstrip("."))

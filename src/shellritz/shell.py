@@ -172,7 +172,11 @@ class Shell(Solvable):
             if G0 is not None or G1 is not None:
                 raise ValueError("give either G0/G1 or function, not both")
             self._growth_fn = function
-            G0_1, G1_1 = function(1.0)
+            try:
+                G0_1, G1_1 = function(1.0)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"set_growth: function(t) must return (G0, G1) nodal arrays "
+                                 f"(n, 3, 3); at t = 1: {exc}") from None
             self._check_growth(np.asarray(G0_1), np.asarray(G1_1))
             return self
         if callable(G0):
@@ -325,12 +329,21 @@ class Shell(Solvable):
         self._prepared = False
         return self
 
+    @staticmethod
+    def _axis(axis):
+        """0, 1, 2 from 'x', 'y', 'z' or an index."""
+        if axis in ("x", "y", "z"):
+            return "xyz".index(axis)
+        if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool) and 0 <= axis <= 2:
+            return int(axis)
+        raise ValueError(f"axis must be 'x', 'y', 'z' or 0, 1, 2, got {axis!r}")
+
     def diaphragm(self, nodes, axis):
         """Rigid diaphragm in the plane normal to ``axis`` (e.g. the end of a
         cylindrical roof, axis 'z'): the displacement components in that plane
         and their derivative along the edge vanish; the normal component and the
         rotation about the edge are free.  The nodes must lie on the boundary."""
-        ax = "xyz".index(axis) if isinstance(axis, str) else int(axis)
+        ax = self._axis(axis)
         self._edges.append(("diaphragm", _nodes(nodes, self.mesh.n_nodes), ax))
         self._prepared = False
         return self
@@ -395,7 +408,7 @@ class Shell(Solvable):
         e-component, the derivative along e is parallel to e.  A node may lie
         on two perpendicular planes (a corner).
         """
-        ax = "xyz".index(axis) if isinstance(axis, str) else int(axis)
+        ax = self._axis(axis)
         n = self.mesh.n_nodes
         idx = self.mesh.nodes_on_plane(ax, value) if nodes is None else _nodes(nodes, n)
         if not len(idx):

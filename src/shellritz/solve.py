@@ -50,6 +50,7 @@ default, left along its most unstable mode to a stable state.
 """
 
 import time
+import warnings
 from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
@@ -831,7 +832,11 @@ def lowest_eigenpairs(lin, K, count):
     X = rng.standard_normal((n, count + 2))
     # the free rigid motions (zero eigenvalues) are excluded
     tol = EIGEN_RTOL * max(np.abs(K.diagonal()).max(), 1e-300)
-    w, V = spla.lobpcg(A, X, M=M, Y=lin.rigid, largest=False, tol=tol, maxiter=200)
+    with warnings.catch_warnings():
+        # a tolerance not reached is judged below, by the residuals returned
+        warnings.filterwarnings("ignore", message=".*not reaching the requested tolerance",
+                                category=UserWarning)
+        w, V = spla.lobpcg(A, X, M=M, Y=lin.rigid, largest=False, tol=tol, maxiter=200)
     order = np.argsort(w)
     w, V = w[order][:count], V[:, order][:, :count]
     residuals = np.linalg.norm(matvec(V) - V * w, axis=0)
