@@ -27,7 +27,7 @@ import numpy as np
 # (hinged edges fix both derivatives there; coarse meshes keep it)
 CORNER_DEG = 30.0
 
-__all__ = ["Mesh", "MeshError", "read_mesh"]
+__all__ = ["Mesh", "MeshError"]
 
 
 class MeshError(ValueError):
@@ -46,45 +46,6 @@ def _list(idx, limit=8):
 # iterations, and fails at 9e-3 and below)
 SLIVER_QUALITY = 1e-6
 POOR_QUALITY = 1e-2
-
-
-def read_mesh(path):
-    """(vertices, triangles) from a file; STL vertices are merged."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(path)
-    try:
-        import meshio
-        m = meshio.read(path)
-        points = np.asarray(m.points, dtype=np.float64)
-        tris, other = [], {}
-        for block in m.cells:
-            if block.type == "triangle":
-                tris.append(np.asarray(block.data))
-            elif block.type not in ("vertex", "line"):
-                other[block.type] = other.get(block.type, 0) + len(block.data)
-        if other:
-            desc = ", ".join(f"{n} {t}" for t, n in other.items())
-            raise MeshError(f"{path}: non-triangle cells ({desc}); triangulate the surface first")
-        if not tris:
-            raise MeshError(f"{path}: no triangle cells")
-        triangles = np.concatenate(tris)
-    except MeshError:
-        raise
-    except (Exception, SystemExit) as exc:      # meshio calls sys.exit on some corrupt files
-        import trimesh
-        try:
-            tm = trimesh.load(path, force="mesh", process=False)
-        except Exception as exc2:
-            raise MeshError(f"{path}: cannot read it as a mesh (meshio: {exc or type(exc).__name__}; "
-                            f"trimesh: {exc2})") from None
-        points = np.asarray(tm.vertices, dtype=np.float64)
-        triangles = np.asarray(tm.faces)
-    if len(points) == 0 or len(triangles) == 0:
-        raise MeshError(f"{path}: cannot read it as a mesh (no triangles in it)")
-    if path.suffix.lower() == ".stl":
-        points, triangles = _merge_coincident(points, triangles)
-    return points, triangles
 
 
 def _merge_coincident(points, triangles):
@@ -192,8 +153,11 @@ class Mesh:
 
     @classmethod
     def read(cls, path, normal=None):
-        X, tri = read_mesh(path)
-        return cls(X, tri, normal=normal)
+        """The triangulated surface in the file (any format meshio or trimesh
+        reads: meshdata.read_surface; STL vertices merged, unused vertices
+        dropped: ``kept`` says which remain)."""
+        from .meshdata import read_surface
+        return read_surface(path, normal=normal).mesh
 
     # -- checks -----------------------------------------------------------
     def _check_triangles(self):

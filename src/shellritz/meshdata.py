@@ -10,9 +10,10 @@ half-written output.
 """
 
 import hashlib
+import io
 import os
 import tempfile
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -71,8 +72,10 @@ def read_surface(path, normal=None):
     if path.stat().st_size == 0:
         raise MeshError(f"{path}: empty file")
     point_data, cell_data = {}, {}
+    said = io.StringIO()                      # what meshio prints before it exits
     try:
-        m = meshio.read(path)
+        with redirect_stdout(said), redirect_stderr(said):
+            m = meshio.read(path)
     except (Exception, SystemExit) as exc:   # no reader, or cannot parse (meshio exits): trimesh
         m = None
         meshio_error = exc
@@ -97,9 +100,10 @@ def read_surface(path, normal=None):
     else:
         import trimesh
         try:
-            tm = trimesh.load(path, force="mesh", process=False)
+            with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):   # its meshio's prints
+                tm = trimesh.load(path, force="mesh", process=False)
         except Exception as exc:
-            why = ("no parse" if isinstance(meshio_error, SystemExit)     # meshio prints, then exits
+            why = (" ".join(said.getvalue().split()) or "no parse" if isinstance(meshio_error, SystemExit)
                    else f"{type(meshio_error).__name__}: {meshio_error}")
             raise MeshError(f"{path}: cannot read it (meshio: {why}; trimesh: "
                             f"{type(exc).__name__}: {exc})") from None
@@ -113,7 +117,8 @@ def read_surface(path, normal=None):
         cell_data = {}
     import warnings
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")     # dropped unused vertices: Mesh.kept says which
+        # dropped unused vertices: Mesh.kept says which (other warnings pass)
+        warnings.filterwarnings("ignore", message="dropping .* unused vertices")
         mesh = Mesh(points, triangles, normal=normal)
     point_data = {k: v[mesh.kept] for k, v in point_data.items() if len(v) == len(points)}
     return Surface(mesh, point_data, cell_data)
