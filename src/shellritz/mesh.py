@@ -100,7 +100,7 @@ class Mesh:
         if tri.ndim != 2 or tri.shape[1] != 3:
             raise MeshError(f"triangles must have shape (m, 3), got {tri.shape}; only triangle cells are supported")
         if not np.issubdtype(tri.dtype, np.integer):
-            if not np.all(tri == np.round(tri)):
+            if not np.issubdtype(tri.dtype, np.number) or not np.all(tri == np.round(tri)):
                 raise MeshError("triangle indices must be integers")
         tri = tri.astype(np.int64)
         if len(tri) == 0:

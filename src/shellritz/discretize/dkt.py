@@ -56,7 +56,7 @@ def rule(npoints):
     try:
         return RULES[npoints]
     except KeyError:
-        raise ValueError(f"no {npoints}-point triangle rule; choose one of {sorted(RULES)}") from None
+        raise ValueError(f"no {npoints!r}-point triangle rule; choose one of {sorted(RULES)}") from None
 
 
 @njit(**KERNEL)
