@@ -204,20 +204,17 @@ class _PardisoHandle:
     them at every call); the call itself is pypardiso's ctypes binding of
     ``pardiso``."""
 
-    def __init__(self, upper_pattern, factors, single=False, cholesky=False, indices_of=None):
+    def __init__(self, upper_pattern, factors, single=False):
         import os
         _locate_mkl()
         import pypardiso
-        # real symmetric indefinite (LDL^T), or positive definite (Cholesky)
-        self.mtype = 2 if cholesky else -2
-        self._ps = ps = pypardiso.PyPardisoSolver(mtype=self.mtype)
+        self._ps = ps = pypardiso.PyPardisoSolver(mtype=-2)     # real symmetric indefinite
         os.environ.setdefault("PYPARDISO_MKL_RT", ps.libmkl._name)   # found elsewhere: keep it
         ps.set_iparm(1, 1)         # use the iparm values below, not the defaults
         ps.set_iparm(2, 2)         # METIS nested dissection ordering
-        if not cholesky:
-            ps.set_iparm(10, 13)   # pivot perturbation 1e-13 (1e-8 by default: inaccurate solves
-            #                        of indefinite leaf Hessians, 7e-2 residuals measured)
-            ps.set_iparm(21, 1)    # Bunch-Kaufman 1x1 and 2x2 pivots
+        ps.set_iparm(10, 13)       # pivot perturbation 1e-13 (1e-8 by default: inaccurate solves
+        #                            of indefinite leaf Hessians, 7e-2 residuals measured)
+        ps.set_iparm(21, 1)        # Bunch-Kaufman 1x1 and 2x2 pivots
         ps.set_iparm(24, 1)        # two-level parallel factorization
         # single: the matrices, the factors and the solves in single precision
         # (the values handed to PARDISO are then float32)
@@ -225,11 +222,8 @@ class _PardisoHandle:
         self.dtype = np.float32 if single else np.float64
         self.n = upper_pattern.shape[0]
         self.nnz = upper_pattern.nnz
-        if indices_of is not None:            # another handle of the pattern: its index arrays
-            self._ia, self._ja = indices_of._ia, indices_of._ja
-        else:
-            self._ia = (upper_pattern.indptr + 1).astype(np.int32)
-            self._ja = (upper_pattern.indices + 1).astype(np.int32)
+        self._ia = (upper_pattern.indptr + 1).astype(np.int32)
+        self._ja = (upper_pattern.indices + 1).astype(np.int32)
         self.factors = factors
         self.analysed = False
 
@@ -244,15 +238,13 @@ class _PardisoHandle:
         int_p = ctypes.POINTER(ctypes.c_int32)
         ps._mkl_pardiso(ps.pt.ctypes.data_as(ctypes.POINTER(ps._pt_type[0])),
                         ctypes.byref(ctypes.c_int32(self.factors)), ctypes.byref(ctypes.c_int32(mnum)),
-                        ctypes.byref(ctypes.c_int32(self.mtype)), ctypes.byref(ctypes.c_int32(phase)),
+                        ctypes.byref(ctypes.c_int32(-2)), ctypes.byref(ctypes.c_int32(phase)),
                         ctypes.byref(ctypes.c_int32(self.n)), data.ctypes.data_as(ctypes.c_void_p),
                         self._ia.ctypes.data_as(int_p), self._ja.ctypes.data_as(int_p),
                         ps.perm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(b.shape[1])),
                         ps.iparm.ctypes.data_as(int_p), ctypes.byref(ctypes.c_int32(0)),
                         b.ctypes.data_as(ctypes.c_void_p), x.ctypes.data_as(ctypes.c_void_p),
                         ctypes.byref(error))
-        if error.value == NOT_POSITIVE_DEFINITE and self.mtype == 2 and phase == 22:
-            raise NotPositiveDefinite("PARDISO Cholesky: not positive definite")
         if error.value != 0:
             raise LinearSolverError(f"PARDISO phase {phase} failed ({PyPardisoError(error.value)})")
         return x
@@ -268,59 +260,29 @@ class _PardisoHandle:
             self.analysed = False
 
 
-# CHOLESKY_FIRST: PARDISO factorizes a Hessian by Cholesky (mtype 2) first,
-# unless the last one was indefinite, and by LDL^T with Bunch-Kaufman pivots
-# (mtype -2, which gives the inertia) where Cholesky meets a non-positive
-# pivot (its error -4; then the matrix has a negative eigenvalue, or a zero
-# one to round-off): a positive definite Hessian, the rule near an
-# equilibrium, has inertia 0 without LDL^T.  Measured on the 100k leaf's
-# Hessian (452,790 DOFs, 2 threads): first numeric factorization 17.5-18.5 s
-# against 20.4-22.6 s, a repeated one 14.2-17.4 against 16.5-17.8 s, solves
-# the same.  A matrix that is not positive definite costs a failed Cholesky
-# once per change from definite to indefinite.
-NOT_POSITIVE_DEFINITE = -4      # PARDISO's error of a Cholesky factorization that meets it
-
-
-class NotPositiveDefinite(LinearSolverError):
-    """A Cholesky factorization met a non-positive pivot."""
-
-
 class _PardisoFactor:
-    """One factor slot: matrix number ``mnum`` of the shared handles: the
-    LDL^T one (``handles[0]``) and, if given, the Cholesky one
-    (``handles[1]``); ``handle`` is the one that holds the slot's factor."""
+    """One factor slot: matrix number ``mnum`` of a shared :class:`_PardisoHandle`."""
 
-    def __init__(self, handles, mnum):
-        self.handles, self._mnum = handles, mnum
-        self.handle = handles[0]
-        self._data = np.zeros(self.handle.nnz, self.handle.dtype)   # PARDISO refines solves against these
+    def __init__(self, handle, mnum):
+        self.handle, self._mnum = handle, mnum
+        self._data = np.zeros(handle.nnz, handle.dtype)   # PARDISO refines solves against these
         self.negative = None
         self.perturbed = 0
 
-    def factorize(self, data, cholesky=False):
-        """LDL^T of the matrix with values ``data``; ``cholesky``: a Cholesky
-        factorization first, LDL^T only where it meets a non-positive pivot."""
+    def factorize(self, data):
+        h = self.handle
         self._data[:] = data
-        self.negative = None
-        for h in (self.handles[1:] if cholesky else ()) + self.handles[:1]:
-            zero = np.zeros((h.n, 1), h.dtype)
+        zero = np.zeros((h.n, 1), h.dtype)
+        try:
             if not h.analysed:
                 h.call(11, self._mnum, self._data, zero)
                 h.analysed = True
-            if h is not self.handle:
-                # the slot's factor moves to this handle: the other one's is freed
-                # (PARDISO phase 0: the factor of matrix mnum), so that a slot never
-                # holds two factors
-                if self.handle.analysed:
-                    self.handle.call(0, self._mnum, self._data, zero)
-                self.handle = h
-            try:
-                h.call(22, self._mnum, self._data, zero)
-            except NotPositiveDefinite:
-                continue
-            self.negative = h.iparm(23) if h.mtype == -2 else 0
-            self.perturbed = h.iparm(14) if h.mtype == -2 else 0
-            return
+            h.call(22, self._mnum, self._data, zero)
+        except LinearSolverError:
+            self.negative = None
+            raise
+        self.negative = h.iparm(23)
+        self.perturbed = h.iparm(14)
 
     def solve(self, b):
         h = self.handle
@@ -331,8 +293,7 @@ class _PardisoFactor:
         return x.reshape(b.shape).astype(np.float64, copy=False)
 
     def release(self):
-        for h in self.handles:
-            h.release()
+        self.handle.release()
 
 
 class _SuperLUFactor:
@@ -411,19 +372,16 @@ class DirectSolver:
                                   shape=(n, n)).T.tocsr()
             probe.sort_indices()
             self._to_upper = probe.data.astype(np.int64)
-            # both slots are factors of one LDL^T handle (one analysis) and one
-            # Cholesky handle (CHOLESKY_FIRST), each analysed at its first use;
-            # single precision: a third slot, a double-precision LDL^T handle of
-            # its own, for the inertia where it decides (factorize(exact_inertia=True))
+            # both slots are factors of one handle (one analysis); single
+            # precision: a third slot, a double-precision handle of its own,
+            # for the inertia where it decides (factorize(exact_inertia=True);
+            # analysed at its first use)
             shared = _PardisoHandle(probe, 2, single)
-            handles = (shared, _PardisoHandle(probe, 2, single, cholesky=True, indices_of=shared))
-            self._slots = ([_PardisoFactor(handles, 1), _PardisoFactor(handles, 2)]
-                           + ([_PardisoFactor((_PardisoHandle(probe, 1, indices_of=shared),), 1)]
-                              if single else []))
+            self._slots = ([_PardisoFactor(shared, 1), _PardisoFactor(shared, 2)]
+                           + ([_PardisoFactor(_PardisoHandle(probe, 1), 1)] if single else []))
         else:
             self._slots = [_SuperLUFactor(), _SuperLUFactor()]
         self._current = None      # slot of the current Hessian
-        self._last_negative = 0   # negative pivots of the last factorization (0 before the first)
         self._pd = None           # slot of the last positive definite Hessian
         self.K = None
         rows = np.repeat(np.arange(n), np.diff(indptr))
@@ -442,9 +400,7 @@ class DirectSolver:
         f = self._slots[slot]
         data = self._regularized(K, REGULARIZATION_SINGLE if self._single(slot) else REGULARIZATION)
         if self.name == "pardiso":
-            # Cholesky first unless the last factorization was indefinite (CHOLESKY_FIRST)
-            f.factorize(data[self._to_upper], cholesky=slot != 2 and self._last_negative == 0)
-            self._last_negative = f.negative
+            f.factorize(data[self._to_upper])
         else:
             Kr = sp.csr_matrix((data, K.indices, K.indptr), shape=K.shape)
             f.factorize(symmetric_from_lower(Kr).tocsc())
