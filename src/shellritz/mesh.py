@@ -48,11 +48,18 @@ SLIVER_QUALITY = 1e-6
 POOR_QUALITY = 1e-2
 
 
+def _same_positions(points):
+    """np.unique (first, inverse, counts) of the points rounded to 1e-10 of the
+    mesh size: points at one position share their entry."""
+    key = np.round(points / (1e-10 * max(np.ptp(points, axis=0).max(), 1e-300))).astype(np.int64)
+    _, first, inverse, counts = np.unique(key, axis=0, return_index=True, return_inverse=True,
+                                          return_counts=True)
+    return first, inverse.reshape(-1), counts
+
+
 def _merge_coincident(points, triangles):
-    scale = max(np.ptp(points, axis=0).max(), 1e-300)
-    key = np.round(points / (1e-10 * scale)).astype(np.int64)
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    return points[first], inverse.reshape(-1)[triangles]
+    first, inverse, _ = _same_positions(points)
+    return points[first], inverse[triangles]
 
 
 def _angle_weighted_normals(X, tri):
@@ -168,14 +175,14 @@ class Mesh:
         P = X[tri]
         cr = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
         area2 = np.linalg.norm(cr, axis=1)
-        lmax2 = np.max([np.sum((P[:, (k + 1) % 3] - P[:, k]) ** 2, axis=1) for k in range(3)], axis=0)
+        edges2 = np.array([np.sum((P[:, (k + 1) % 3] - P[:, k]) ** 2, axis=1) for k in range(3)])
+        lmax2 = edges2.max(axis=0)
         flat = np.where(area2 <= 1e-12 * lmax2)[0]
         if len(flat):
             raise MeshError(f"degenerate triangles {_list(flat)}: zero area "
                             f"(vertices {_list(tri[flat[0]])} are collinear)")
         # shape quality 4 sqrt(3) area / (sum of squared edges): 1 equilateral, 0 degenerate
-        quality = 2.0 * np.sqrt(3.0) * area2 / sum(np.sum((P[:, (k + 1) % 3] - P[:, k]) ** 2, axis=1)
-                                                  for k in range(3))
+        quality = 2.0 * np.sqrt(3.0) * area2 / edges2.sum(axis=0)
         order = np.argsort(quality)
         sliver = order[quality[order] < SLIVER_QUALITY]
         if len(sliver):
@@ -199,10 +206,8 @@ class Mesh:
     def _warn_coincident(self):
         """Distinct vertices at one position leave the surface cut there (a
         seam not merged): a warning, since a cut may be meant."""
-        X = self.vertices
-        key = np.round(X / (1e-10 * max(np.ptp(X, axis=0).max(), 1e-300))).astype(np.int64)
-        _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-        same = np.where(cnt[inv.ravel()] > 1)[0]
+        _, inverse, counts = _same_positions(self.vertices)
+        same = np.where(counts[inverse] > 1)[0]
         if len(same):
             warnings.warn(f"{len(same)} vertices share a position with another ({_list(same)}): the "
                           f"surface is cut there; merge them if it is continuous", stacklevel=3)

@@ -53,12 +53,32 @@ def pressure_face(face, h):
         raise ValueError(f"pressure face {face!r}: choose 'inner', 'outer' or 'middle'") from None
 
 
+def checked_int(name, value, low):
+    """``value`` as an int >= low (bools and non-integral numbers refused)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    if value < low:
+        raise ValueError(f"{name} must be at least {low}, got {value!r}")
+    return int(value)
+
+
+def checked_float(name, value, low, high=None, zero_ok=False, high_ok=False):
+    """``value`` as a finite float in (low, high) (``zero_ok``: low
+    included; ``high_ok``: high included; high None: no upper bound)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    value = float(value)
+    above = value >= low if zero_ok else value > low
+    below = high is None or (value <= high if high_ok else value < high)
+    if not (np.isfinite(value) and above and below):
+        interval = (("[" if zero_ok else "(") + f"{low:g}, "
+                    + ("inf)" if high is None else f"{high:g}" + ("]" if high_ok else ")")))
+        raise ValueError(f"{name} must be in {interval}, got {value!r}")
+    return value
+
+
 def check_thickness(h):
-    if isinstance(h, (bool, np.bool_)) or not isinstance(h, (int, float, np.integer, np.floating)):
-        raise TypeError(f"thickness must be a number, got {h!r}")
-    if not (np.isfinite(h) and h > 0):
-        raise ValueError(f"thickness h={h!r} must be a finite positive number")
-    return float(h)
+    return checked_float("thickness", h, 0)
 
 
 @dataclass

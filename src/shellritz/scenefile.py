@@ -189,14 +189,10 @@ def _solver(table):
             raise SceneError(f"{where}: expected a string, got {v!r}")
     # the values, as solve checks them (before any mesh is read or solved)
     from dataclasses import fields
-    from .solve import SolverOptions, checked_float, checked_int
-    names = {f.name for f in fields(SolverOptions)}
+    from .solve import SolverOptions, solver_options
+    names = {f.name for f in fields(SolverOptions)} | {"steps", "min_dt"}
     try:
-        SolverOptions(verbose=False, **{k: v for k, v in table.items() if k in names})
-        if "steps" in table:
-            checked_int("steps", table["steps"], 1)
-        if "min_dt" in table:
-            checked_float("min_dt", table["min_dt"], 0, 1)
+        solver_options(verbose=False, **{k: v for k, v in table.items() if k in names})
     except (ValueError, TypeError) as exc:
         raise SceneError(f"[solver]: {exc}") from None
     return dict(table)

@@ -483,7 +483,8 @@ class Shell(Solvable):
             if callable(val):
                 val = val(self.X, self.mesh.normals)
             q = _field(val, n, (3,), attr[1:])
-            setattr(self, attr, _finite(q, q.shape, attr[1:]).copy())
+            _finite(q, q.shape, attr[1:])
+            setattr(self, attr, q)
         return self
 
     def pressure(self, p, face="middle"):

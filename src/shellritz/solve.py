@@ -60,6 +60,7 @@ import scipy.sparse.linalg as spla
 from .linalg import (AMG_LEAN_NEAR_NULL, AUTO_DIRECT_MAX_DOFS, PRECISIONS, CGPath,
                      LinearSolverError, free_rigid_modes, jacobi, lower_matvec, make_linear_solver,
                      projector, resolve_method, steihaug_cg)
+from .model import checked_float, checked_int
 
 GLOBALIZATIONS = ("auto", "trust-region", "line-search")
 PATHS = ("load", "arclength")
@@ -146,30 +147,6 @@ class SolverOptions:
                               high_ok=name == "max_dt")
         if self.stop is not None and not callable(self.stop):
             raise TypeError(f"stop must be a callable(path point) or None, got {self.stop!r}")
-
-
-def checked_int(name, value, low):
-    """``value`` as an int >= low (bools and non-integral numbers refused)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {value!r}")
-    if value < low:
-        raise ValueError(f"{name} must be at least {low}, got {value!r}")
-    return int(value)
-
-
-def checked_float(name, value, low, high=None, zero_ok=False, high_ok=False):
-    """``value`` as a finite float in (low, high) (``zero_ok``: low
-    included; ``high_ok``: high included; high None: no upper bound)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a number, got {value!r}")
-    value = float(value)
-    above = value >= low if zero_ok else value > low
-    below = high is None or (value <= high if high_ok else value < high)
-    if not (np.isfinite(value) and above and below):
-        interval = (("[" if zero_ok else "(") + f"{low:g}, "
-                    + ("inf)" if high is None else f"{high:g}" + ("]" if high_ok else ")")))
-        raise ValueError(f"{name} must be in {interval}, got {value!r}")
-    return value
 
 
 @dataclass
@@ -954,6 +931,19 @@ def equilibrium(problem, t, opts, history, g_ref, lin, may_cut=False):
 
 
 # --------------------------------------------------------------- continuation
+def solver_options(steps=1, min_dt=1e-4, verbose=True, **options):
+    """The SolverOptions of a solve (Solvable.solve), every option checked,
+    and its steps and min_dt."""
+    known = {f.name for f in fields(SolverOptions)} - {"verbose"}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise TypeError(f"solve() got unknown option(s) {', '.join(unknown)}; "
+                        f"the options are {', '.join(sorted(known))}")
+    checked_int("steps", steps, 1)
+    checked_float("min_dt", min_dt, 0, 1)
+    return SolverOptions(verbose=verbose, **options)
+
+
 class _Counted:
     """The problem, with its evaluations counted by mode in the history."""
 
@@ -1069,8 +1059,8 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
 
 def _linear_failure(exc, t, lin):
     """The message of a linear solve that failed at t (SolveError)."""
-    hint = ("; the shell has free rigid motions (no supports): under loads with a net force or "
-            "moment it has no equilibrium (clamp or pin it)" if lin.rigid is not None else "")
+    hint = ("; the shell has free rigid motions (no supports): under loads with a net force it "
+            "has no equilibrium (clamp or pin it)" if lin.rigid is not None else "")
     return f"t = {t:.6g}: the linear solver failed ({exc}){hint}"
 
 
@@ -1435,18 +1425,7 @@ class Solvable:
         or None), max_cg, xtol, ftol, armijo, min_alpha, max_escapes.
         Raises SolveError (with ``.result``, the last converged state) on failure.
         """
-        known = {f.name for f in fields(SolverOptions)} - {"verbose"}
-        unknown = sorted(set(options) - known)
-        if unknown:
-            raise TypeError(f"solve() got unknown option(s) {', '.join(unknown)}; "
-                            f"the options are {', '.join(sorted(known))}")
-        opts = SolverOptions(verbose=verbose, **options)
-        checked_int("steps", steps, 1)
-        checked_float("min_dt", min_dt, 0, 1)
-        if not (monitor is None or callable(monitor)):
-            nodes = np.atleast_1d(np.asarray(monitor))
-            if not np.issubdtype(nodes.dtype, np.integer):
-                raise TypeError(f"monitor must be node indices (integers) or a callable(engine), got {monitor!r}")
+        opts = solver_options(steps, min_dt, verbose, **options)
         if thickness_path is not None:
             return self._solve_through_thicknesses(thickness_path, steps, verbose, min_dt, monitor,
                                                    start, options)
@@ -1455,9 +1434,11 @@ class Solvable:
         if check is not None:
             check()
         t_start, force_scale = (0.0, 0.0) if start is None else self._start_from(start)
-        self._monitor = (monitor if monitor is None or callable(monitor)
-                         else np.atleast_1d(np.asarray(monitor, int)))
-        if self._monitor is not None and not callable(self._monitor):
+        self._monitor = monitor
+        if not (monitor is None or callable(monitor)):
+            self._monitor = np.atleast_1d(np.asarray(monitor))
+            if not np.issubdtype(self._monitor.dtype, np.integer):
+                raise TypeError(f"monitor must be node indices (integers) or a callable(engine), got {monitor!r}")
             try:
                 self._node_positions(self._monitor)
             except IndexError:
