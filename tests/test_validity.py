@@ -359,6 +359,49 @@ def test_strip_and_plate_hessians_are_positive_definite_at_every_mesh_size():
         assert all(negative(plate(n, gamma, True)) == 0 for n in (4, 8, 16)), gamma
 
 
+def _square_with_flap(flap_height):
+    """4 x 4 square with a boundary triangle of the given height added under
+    its edge y = 0 (longest edge 0.25; flap_height None: the square alone)."""
+    from shellritz import Mesh, shapes
+    m = shapes.rectangle(4, 4)
+    if flap_height is None:
+        return m
+    X, T = m.vertices, m.triangles
+    a, b = [e for e in m.boundary_edges if np.all(np.abs(X[e, 1]) < 1e-12)][0]
+    return Mesh(np.vstack([X, 0.5 * (X[a] + X[b]) - [0, flap_height, 0]]), np.vstack([T, [b, a, len(X)]]))
+
+
+def _grown_square(mesh, h=0.05):
+    from shellritz import Shell
+    s = Shell(mesh, h, NeoHookean(1.0, nu=0.3))
+    s.clamp(mesh.nodes_where(lambda X: X[:, 0] < 1e-9))
+    s.set_growth(G0=np.diag([1.3, 1.1, 1.0]))
+    return s
+
+
+@pytest.mark.parametrize("ratio,rel", [(0.15, 2e-3), (0.01, 5e-2)])
+def test_elements_thin_against_the_thickness_carry_the_term(ratio, rel, monkeypatch):
+    """A triangle long (0.25 = 5 h) but thin (height ratio * h) carries the
+    strain-gradient term like one shorter than h (dkt_active_elements).
+    Without it the grown square's energy is unbounded below through that
+    element: the solve failed at t = 0.9995 (0.15 h) and 0.0028 (0.01 h).
+    Observed with it: converged, stable, energy 2.9882e-4 / 3.1008e-4
+    against 2.9843e-4 without the flap (+0.13 % / +3.9 %: the term on a
+    sliver; 0.3 h: +0.21 %)."""
+    import shellritz.shell as shell_module
+    from shellritz import SolveError
+    E0 = _grown_square(_square_with_flap(None)).solve(verbose=False).energy
+    s = _grown_square(_square_with_flap(ratio * 0.05))
+    assert np.flatnonzero(s.strain_gradient.active).tolist() == [32]     # the flap only
+    r = s.solve(verbose=False)
+    assert r.history.stable and abs(r.energy / E0 - 1) < rel
+    # the criterion of the longest edge alone (below h: no element here) leaves the flap without it
+    monkeypatch.setattr(shell_module, "dkt_active_elements",
+                        lambda mesh, h: np.zeros(len(mesh.triangles), bool))
+    with pytest.raises(SolveError):
+        _grown_square(_square_with_flap(ratio * 0.05)).solve(verbose=False)
+
+
 def test_admissible_set_refuses_folded_offset_surfaces():
     from shellritz.model import ShellError
     flat = np.r_[1.0, 0, 0, 0, 1, 0, np.zeros(9)]

@@ -271,17 +271,25 @@ class LineStrainGradient:
 
 
 def dkt_active_elements(mesh, h):
-    """The triangles that carry the term: longest edge shorter than h.  A
-    coarser element cannot hold the short in-plane waves the term stabilizes
-    (their energy becomes negative only beyond k h = 19 at 5 % compression,
-    k h = 8 near 30 %; an element of size h resolves k h up to about 10):
-    clamped compressed plates with elements of size h have no negative
-    Hessian eigenvalue without the term up to 25 % compression
-    (docs/validity.md).  Skipping them keeps the cost and the Hessian pattern
-    of thin-shell meshes (elements larger than h) unchanged."""
+    """The triangles that carry the term: longest edge shorter than h, or
+    height (twice the area over the longest edge) below h / 2.  A coarser
+    element cannot hold the short in-plane waves the term stabilizes (their
+    energy becomes negative only beyond k h = 19 at 5 % compression, k h = 8
+    near 30 %; an element of size h resolves k h up to about 10): clamped
+    compressed plates with elements of size h have no negative Hessian
+    eigenvalue without the term up to 25 % compression (docs/validity.md).
+    Skipping them keeps the cost and the Hessian pattern of thin-shell meshes
+    (elements larger than h) unchanged.  The height covers elements long but
+    thin against h, which hold such waves across: a boundary triangle of
+    height 0.15 h on a grown square made the energy unbounded below without
+    it (tests/test_validity.py).  For right isosceles triangles the two
+    criteria coincide, and an element short by its height only has an
+    aspect ratio of 2 or more."""
     tri, X = mesh.triangles, mesh.vertices
     edges = np.stack([X[tri[:, (k + 1) % 3]] - X[tri[:, k]] for k in range(3)], axis=1)
-    return np.linalg.norm(edges, axis=2).max(axis=1) < h
+    longest = np.linalg.norm(edges, axis=2).max(axis=1)
+    height = np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1) / longest
+    return (longest < h) | (height < 0.5 * h)
 
 
 class DKTStrainGradient:
