@@ -402,6 +402,17 @@ def test_elements_thin_against_the_thickness_carry_the_term(ratio, rel, monkeypa
         _grown_square(_square_with_flap(ratio * 0.05)).solve(verbose=False)
 
 
+def test_a_failed_solve_names_the_poorly_shaped_triangles():
+    """Below a height of about 1e-3 h (shape quality 4.6e-4) the flap still
+    fails (observed: at t = 0.0059 for 1e-4 h, 4.6e-5); the error then names
+    it, and the mesh warned of it when it was made."""
+    from shellritz import SolveError
+    with pytest.warns(UserWarning, match=r"1 poorly shaped triangles \(32\), shape quality down to 4.6"):
+        mesh = _square_with_flap(1e-4 * 0.05)
+    with pytest.raises(SolveError, match=r"the mesh has 1 poorly shaped triangles \(32\).*likely cause"):
+        _grown_square(mesh).solve(verbose=False)
+
+
 def test_admissible_set_refuses_folded_offset_surfaces():
     from shellritz.model import ShellError
     flat = np.r_[1.0, 0, 0, 0, 1, 0, np.zeros(9)]

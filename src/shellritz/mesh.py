@@ -41,9 +41,10 @@ def _list(idx, limit=8):
 
 
 # triangle shape quality (Mesh._check_triangles): refused below SLIVER_QUALITY,
-# a warning below POOR_QUALITY (measured on a 4 x 4 square with one boundary
-# triangle flattened: a growth solve converges at quality 9e-2 in 57 Newton
-# iterations, and fails at 9e-3 and below)
+# a warning below POOR_QUALITY, and named in the error of a solve that fails
+# (measured on a grown 4 x 4 square, h = 0.05, with a thin triangle added on
+# its boundary, tests/test_validity.py: converges at quality 4.6e-3 in 18 Newton
+# iterations, at 1.4e-3 in 1,326, and fails at 4.6e-4 and below)
 SLIVER_QUALITY = 1e-6
 POOR_QUALITY = 1e-2
 
@@ -189,11 +190,11 @@ class Mesh:
             raise MeshError(f"nearly degenerate triangles {_list(sliver)}: shape quality "
                             f"{quality[sliver[0]]:.2e} (1 for an equilateral triangle; below "
                             f"{SLIVER_QUALITY:g} the element's equations are singular to round-off)")
-        poor = order[quality[order] < POOR_QUALITY]
-        if len(poor):
-            warnings.warn(f"{len(poor)} poorly shaped triangles ({_list(poor)}), shape quality down to "
-                          f"{quality[poor[0]]:.2e} (1 for an equilateral triangle): the DKT element "
-                          f"is ill-conditioned on them and Newton may fail; remesh them", stacklevel=3)
+        self.quality = quality
+        poor = self.poor_triangles()
+        if poor:
+            warnings.warn(f"{poor}: the DKT element is ill-conditioned on them and Newton may fail; "
+                          f"remesh them", stacklevel=3)
         key = np.sort(tri, axis=1)
         _, first, inv, cnt = np.unique(key, axis=0, return_index=True, return_inverse=True,
                                        return_counts=True)
@@ -202,6 +203,16 @@ class Mesh:
             raise MeshError(f"duplicate triangles {_list(dup)} (same three vertices)")
         self.facet_normals = cr / area2[:, None]
         self.areas = 0.5 * area2
+
+    def poor_triangles(self):
+        """The triangles of shape quality below POOR_QUALITY, worst first, in
+        words ('' if none)."""
+        order = np.argsort(self.quality)
+        poor = order[self.quality[order] < POOR_QUALITY]
+        if not len(poor):
+            return ""
+        return (f"{len(poor)} poorly shaped triangles ({_list(poor)}), shape quality down to "
+                f"{self.quality[poor[0]]:.2e} (1 for an equilateral triangle)")
 
     def _warn_coincident(self):
         """Distinct vertices at one position leave the surface cut there (a

@@ -605,6 +605,11 @@ class Shell(Solvable):
                              f"force {np.array2string(net, precision=4)}: no equilibrium; clamp or pin "
                              f"nodes, or balance the loads")
 
+    def _failure_hint(self):
+        """What the mesh may have to do with a failed solve ('' if nothing)."""
+        poor = self.mesh.poor_triangles()
+        return f"the mesh has {poor}, a likely cause: remesh them" if poor else ""
+
     # ------------------------------------------------------------------ problem protocol
     def set_parameter(self, t):
         self._t = t

@@ -1451,6 +1451,10 @@ class Solvable:
                                    force_scale=force_scale)
         except SolveError as exc:
             exc.result = self._result(exc.history, time.perf_counter() - t0, False, exc.last_t)
+            hint = getattr(self, "_failure_hint", None)       # engines that know a likely cause
+            note = hint() if hint is not None else ""
+            if note:
+                exc.args = (f"{exc}; {note}",)
             raise
         return self._result(history, time.perf_counter() - t0, True, history.steps[-1][0])
 
