@@ -719,3 +719,32 @@ def test_amg_options_are_checked():
     with pytest.raises(ValueError, match="AMG options"):
         amg.options = dict(strength="classical")
         amg.factorize(K)
+
+
+def test_cg_solves_the_model_projected_off_the_free_rigid_motions():
+    """Away from equilibrium a free body's Hessian K is not zero along its
+    rigid rotations Q (K Q != 0), so K p has a part along Q that no step
+    orthogonal to Q can reduce: CG must take the residual of the projected
+    model, P(-g - K p).  With the unprojected one it ran to maxiter (and
+    then found r.M^-1 r at round-off, "not positive definite") on a buckled
+    free disc.  Here K = A + (c q^T + q c^T), A SPD, q a unit vector."""
+    rng = np.random.default_rng(1)
+    n = 40
+    B = rng.standard_normal((n, n))
+    A = B @ B.T / n + np.eye(n)
+    q = np.zeros(n)
+    q[0] = 1.0
+    c = rng.standard_normal(n)
+    K = A + np.outer(c, q) + np.outer(q, c)
+    Q = q[:, None]
+    project = lambda v: v - Q @ (Q.T @ v)
+    g = project(rng.standard_normal(n))
+    p, info = steihaug_cg(lambda v: K @ v, g, lambda r: np.linalg.solve(A, r), rtol=1e-10,
+                          maxiter=100, project=project)
+    assert info["reason"] == "converged" and info["iterations"] < 40
+    assert abs(q @ p) < 1e-14
+    assert np.linalg.norm(project(K @ p + g)) <= 1e-10 * np.linalg.norm(g)
+    # the projected model's minimizer (K restricted to the complement of q)
+    exact = np.zeros(n)
+    exact[1:] = np.linalg.solve(K[1:, 1:], -g[1:])
+    assert np.allclose(p, exact, rtol=1e-8, atol=1e-12)

@@ -1115,11 +1115,15 @@ def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, proj
     their recurrences for the M-norms, so M itself is never applied).
 
     matvec: p -> K p; precond: r -> M^-1 r (symmetric positive definite);
-    project: the orthogonal projector onto the complement of the free rigid
-    motions (None: there are none), applied to the preconditioned residuals,
-    so the iterates never move the body rigidly (a free rigid rotation of a
-    stressed state away from equilibrium has curvature of either sign, which
-    the iteration would otherwise follow).
+    project: the orthogonal projector P onto the complement of the free
+    rigid motions (None: there are none), applied to the preconditioned
+    residuals, so the iterates never move the body rigidly (a free rigid
+    rotation of a stressed state away from equilibrium has curvature of
+    either sign, which the iteration would otherwise follow), and to the
+    products K d: the iteration solves the projected model, whose residual
+    is P(-g - K p) (K p has a part along the rigid rotations away from
+    equilibrium, which no step orthogonal to them can reduce: unprojected,
+    it held the residual up and CG ran to maxiter on a buckled free disc).
     Stops when ||K p + g|| <= rtol ||g||, on the boundary, or on negative
     curvature.  With radius = inf (truncated Newton for a line search) a
     negative curvature direction met in the first iteration is returned as is
@@ -1140,14 +1144,15 @@ def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, proj
     if gnorm == 0.0:
         return p, dict(iterations=0, reason="converged", norm_M=0.0, curvature=None)
     P = project or (lambda v: v)
-    z = P(precond(P(r)))
+    r = P(r)
+    z = P(precond(r))
     rz = r @ z
     if not rz > 0.0:
         raise LinearSolverError(f"preconditioner not positive definite (r.M^-1 r = {rz:.3e})")
     d = z.copy()
     pMp, pMd, dMd = 0.0, 0.0, rz
     for it in range(1, maxiter + 1):
-        Kd = matvec(d)
+        Kd = P(matvec(d))
         dKd = d @ Kd
         if path is not None:
             path.add(d, rz / dKd if dKd > 0.0 else None, pMp, pMd, dMd)
@@ -1171,7 +1176,7 @@ def steihaug_cg(matvec, g, precond, radius=np.inf, rtol=1e-10, maxiter=200, proj
         if np.linalg.norm(r) <= rtol * gnorm:
             return p, dict(iterations=it, reason="converged", norm_M=np.sqrt(max(pMp, 0.0)),
                            curvature=None)
-        z = P(precond(P(r)))
+        z = P(precond(r))
         rz_new = r @ z
         if not rz_new > 0.0 and np.linalg.norm(r) <= 1e-6 * gnorm:
             # r.M^-1 r lost to round-off (r nearly in the numerical null

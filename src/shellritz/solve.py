@@ -811,7 +811,8 @@ def lowest_eigenpairs(lin, K, count):
     tol = EIGEN_RTOL * max(np.abs(K.diagonal()).max(), 1e-300)
     with warnings.catch_warnings():
         # a tolerance not reached is judged below, by the residuals returned
-        warnings.filterwarnings("ignore", message=".*not reaching the requested tolerance",
+        # (SciPy's message has line breaks before these words: (?s))
+        warnings.filterwarnings("ignore", message="(?s).*not reaching the requested tolerance",
                                 category=UserWarning)
         w, V = spla.lobpcg(A, X, M=M, Y=lin.rigid, largest=False, tol=tol, maxiter=200)
     order = np.argsort(w)
@@ -1059,8 +1060,8 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
 
 def _linear_failure(exc, t, lin):
     """The message of a linear solve that failed at t (SolveError)."""
-    hint = ("; the shell has free rigid motions (no supports): under loads with a net force it "
-            "has no equilibrium (clamp or pin it)" if lin.rigid is not None else "")
+    hint = ("; the shell has free rigid motions (no supports): remove_rigid_motions() (scene "
+            "files: supports = \"rigid\") removes them exactly" if lin.rigid is not None else "")
     return f"t = {t:.6g}: the linear solver failed ({exc}){hint}"
 
 

@@ -277,7 +277,10 @@ def dkt_active_elements(mesh, h):
     energy becomes negative only beyond k h = 19 at 5 % compression, k h = 8
     near 30 %; an element of size h resolves k h up to about 10): clamped
     compressed plates with elements of size h have no negative Hessian
-    eigenvalue without the term up to 25 % compression (docs/validity.md).
+    eigenvalue without the term up to 25 % compression (docs/validity.md;
+    plates of side 2 h), but a clamped plate of side 5 h does, from 10-15 %
+    at nu >= 0.4 and at 25 % at nu = 0.3 (README, Validity limits: a mode of
+    the nodal tangent derivatives, which this term does not address).
     Skipping them keeps the cost and the Hessian pattern of thin-shell meshes
     (elements larger than h) unchanged.  The height covers elements long but
     thin against h, which hold such waves across: a boundary triangle of
