@@ -115,8 +115,10 @@ def write_bad_inputs(folder):
     Xn = X[:3].copy()
     Xn[2, 1] = np.nan
     meshio.write(folder / "nan.vtu", meshio.Mesh(Xn, [("triangle", np.array([[0, 1, 2]]))]))
-    # growth the solver cannot follow: h |G1| = 3 at t = 1
-    disc_with_growth(folder / "diverges.vtu", bend=150.0)
+    # growth the solver cannot follow: h |G1| = 1.2 at t = 1 (h = 0.02)
+    disc_with_growth(folder / "diverges.vtu", bend=60.0)
+    # growth whose stress-free state folds through the thickness (h |G1| = 3)
+    disc_with_growth(folder / "folds.vtu", bend=150.0)
 
 
 def test_bad_inputs_are_reported_and_the_batch_goes_on(tmp_path, scene):
@@ -133,6 +135,7 @@ def test_bad_inputs_are_reported_and_the_batch_goes_on(tmp_path, scene):
     assert "non-manifold edges" in reasons["nonmanifold"] and "(0, 1)" in reasons["nonmanifold"]
     assert "non-finite coordinates at vertices 2" in reasons["nan"]
     assert reasons["diverges"].startswith("solver failed")
+    assert "G1: the grown state folds through the thickness at nodes [0, 1, 2" in reasons["folds"]
     # nothing computed is lost: the last converged state of the failed solve is written
     s = json.loads((out / "diverges.json").read_text())
     if s.get("partial"):

@@ -204,6 +204,21 @@ def test_growth_undefined_partway_keeps_the_converged_steps():
     assert np.isfinite(result.energy) and np.abs(result.r - mesh.vertices).max() > 0.1   # it shrank
 
 
+def test_growth_that_folds_the_grown_state_through_the_thickness_is_refused():
+    """G0 = I, G1 = g e1 e1 at h = 0.05: det(G0 + Z G1) = 1 + g Z vanishes at
+    Z = -h/2 once g h / 2 >= 1.  g = 45 (1.125) used to fail at t = 0.875
+    with the generic continuation message; it is refused when set.  A
+    rotation-like G1 (complex eigenvalues) never folds."""
+    mesh = shapes.rectangle(4, 4)
+    s = Shell(mesh, 0.05, LAW)
+    with pytest.raises(ValueError, match=r"G1: the grown state folds through the thickness at nodes "
+                                         r"\[0, 1, 2.*h \|mu\| / 2 = 1.12 >= 1"):
+        s.set_growth(G1=np.diag([45.0, 0.0, 0.0]))
+    with pytest.warns(UserWarning, match="through-thickness growth gradients"):
+        s.set_growth(G1=np.diag([35.0, 0.0, 0.0]))          # h |mu| / 2 = 0.875: admissible
+        s.set_growth(G1=[[0.0, -45.0, 0.0], [45.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+
+
 def test_an_unsupported_shell_under_a_net_load_says_why():
     mesh = shapes.rectangle(3, 3)
     s = Shell(mesh, 0.02, LAW)

@@ -201,6 +201,19 @@ class Shell(Solvable):
         bad = np.where(det <= 0)[0]
         if len(bad):
             raise ValueError(f"G0: det G0 <= 0 at nodes {bad[:8].tolist()} (det = {det[bad[0]]:g})")
+        # the grown stress-free state through the thickness, G0 + Z G1 (|Z| <=
+        # h/2), must not fold: det(G0 + Z G1) = det G0 prod(1 + Z mu_i), mu_i
+        # the eigenvalues of G0^-1 G1, vanishes there iff a real mu_i has
+        # h |mu_i| / 2 >= 1; no state of finite energy exists then
+        mu = np.linalg.eigvals(np.linalg.solve(G0, G1))
+        real = np.abs(mu.imag) <= 1e-12 * np.maximum(np.abs(mu), 1e-300)
+        fold = 0.5 * self.h * np.where(real, np.abs(mu.real), 0.0).max(axis=1)
+        bad = np.where(fold >= 1.0)[0]
+        if len(bad):
+            raise ValueError(f"G1: the grown state folds through the thickness at nodes {bad[:8].tolist()}: "
+                             f"det(G0 + Z G1) <= 0 at a face Z = -+h/2 (h |mu| / 2 = {fold[bad[0]]:.3g} "
+                             f">= 1, mu a real eigenvalue of G0^-1 G1); no state of finite energy "
+                             f"exists (MODEL.md section 8 asks h |G1| << |G0|)")
         if warn:
             ratio = self.h * np.linalg.norm(G1, ord=2, axis=(1, 2)) / np.linalg.svd(G0, compute_uv=False)[:, -1]
             if ratio.max() > 0.2:
