@@ -615,8 +615,13 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
                     print(f"    t={t:.4f} it={it:2d}  E={E: .10e}  |g|={gnorm:.3e}  full Newton step"
                           + (" (watchdog)" if watch is not None else ""), flush=True)
                 continue
-        if trust and newton_step and info["norm_M"] > radius:
-            p *= radius / info["norm_M"]           # scaled Newton step on the boundary
+        if trust and info["norm_M"] > radius:
+            # the Newton step (r = inf with a positive definite factor), or the
+            # first CG direction where K, though its factor is positive
+            # definite, has negative curvature (a near-zero eigenvalue of
+            # either sign: a near-symmetry), scaled onto the boundary; the
+            # latter, unscaled, repeated one rejected step to max_iter
+            p *= radius / info["norm_M"]
             info.update(norm_M=radius, reason="boundary")
             newton_step = False
         first_norm = first_norm or info["norm_M"]
