@@ -724,3 +724,19 @@ def test_trust_region_steps_stay_within_the_radius():
     beyond = [b for a, b in zip(its, its[1:])
               if a.t == b.t and not a.accepted and np.isfinite(a.radius) and b.step > a.radius * (1 + 1e-9)]
     assert len(its) > 100 and not beyond
+
+
+def test_a_load_path_failing_at_a_limit_point_says_so():
+    """A sphere (80 triangles, h = 0.02, nu = 0.45) inflated by an inner
+    pressure twice its maximum (about 1.24 mu h / R for a thin neo-Hookean
+    sphere) has no equilibrium beyond the maximum: the load path fails there
+    and says that the path turns back (|dx/dt| ~ 1/sqrt(t_c - t), observed
+    t_c = 0.6501 against the failure at t = 0.650024, reach 14 sizes) and
+    that arc length follows it; a failure elsewhere gets no such hint (the
+    sliver of tests/test_validity.py: reach 0.39)."""
+    s = Shell(shapes.sphere(1), 0.02, NeoHookean(1.0, nu=0.45))
+    s.remove_rigid_motions()
+    s.pressure(0.04, face="inner")
+    with pytest.raises(SolveError, match=r"path turns back near t = 0\.65.*path=\"arclength\" follows") as info:
+        s.solve(verbose=False)
+    assert 0.6 < info.value.last_t < 0.7

@@ -358,6 +358,13 @@ CONVERGING_DROP = 0.1
 # on the state; their inertia differs only if an eigenvalue of K is within
 # the change of K over that step of zero (a critical point to round-off)
 CONVERGED_MARGIN = 0.1
+# a failed load path gets the hint of a limit point (_limit_point_hint) where
+# the tangent at its last equilibrium would move the shell by more than this
+# many times its size over the rest of the parameter (measured: a sphere
+# inflated past its pressure maximum 14; a failure on a sliver triangle 0.39,
+# on a near-symmetry 0.017; a sheet curled by a large G1 45 at t = 0, but
+# with no earlier tangent to show the path turning)
+LIMIT_POINT_REACH = 1.0
 # factorization reuse (module docstring), from REUSE_MIN_DOFS free DOFs on
 # ("auto"; a size, not a timing, so that a run is reproducible): PARDISO on
 # the leaf, 226k DOFs: a factorization 6.1 s = 24 CG iterations (two
@@ -1059,8 +1066,35 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
                 dt = min(2 * dt, 1.0 - t, max_dt)
         else:
             failed_here = True
-            dt = _step_back(problem, saved, t, dt, min_dt, opts, history, "step")
+            try:
+                dt = _step_back(problem, saved, t, dt, min_dt, opts, history, "step")
+            except SolveError as exc:
+                exc.args = (exc.args[0] + _limit_point_hint(problem, prev, here, t),)
+                raise
     return history
+
+
+def _limit_point_hint(problem, prev, here, t):
+    """A hint for a load path that failed beyond t where it turns back (a
+    limit point): there |dx/dt| grows like 1/sqrt(t_c - t), so 1/|dx/dt|^2
+    through the last two equilibria, extrapolated linearly, vanishes at t_c;
+    given when t_c <= 1 and the tangent at t would move the shell by more
+    than LIMIT_POINT_REACH times its size over the rest of the parameter
+    ('' otherwise, or without both tangents)."""
+    if here is None or prev is None or here.tangent is None or prev.tangent is None:
+        return ""
+    size = problem.size_scale()
+    now, before = np.abs(here.tangent).max() / size, np.abs(prev.tangent).max() / size
+    reach = now * (1.0 - t)
+    if reach <= LIMIT_POINT_REACH or not now > before:
+        return ""
+    t_c = t + (t - prev.t) * now ** -2 / (before ** -2 - now ** -2)
+    if t_c > 1.0:
+        return ""
+    return (f"; the path turns back near t = {t_c:.4g} (a limit point: a load or pressure maximum, "
+            f"a snap-through): |dx/dt| grows like 1/sqrt({t_c:.4g} - t) from t = {prev.t:.6g} to "
+            f"{t:.6g}, and there it would move the shell by {reach:.3g} times its size over the rest "
+            f"of the load; path=\"arclength\" follows the path through it")
 
 
 def _linear_failure(exc, t, lin):
