@@ -205,9 +205,11 @@ class Shell(Solvable):
         # h/2), must not fold: det(G0 + Z G1) = det G0 prod(1 + Z mu_i), mu_i
         # the eigenvalues of G0^-1 G1, vanishes there iff a real mu_i has
         # h |mu_i| / 2 >= 1; no state of finite energy exists then
-        mu = np.linalg.eigvals(np.linalg.solve(G0, G1))
-        real = np.abs(mu.imag) <= 1e-12 * np.maximum(np.abs(mu), 1e-300)
-        fold = 0.5 * self.h * np.where(real, np.abs(mu.real), 0.0).max(axis=1)
+        fold = np.zeros(len(G0))
+        if G1.any():              # (checked at every t of a path: no work without G1)
+            mu = np.linalg.eigvals(np.linalg.solve(G0, G1))
+            real = np.abs(mu.imag) <= 1e-12 * np.maximum(np.abs(mu), 1e-300)
+            fold = 0.5 * self.h * np.where(real, np.abs(mu.real), 0.0).max(axis=1)
         bad = np.where(fold >= 1.0)[0]
         if len(bad):
             raise ValueError(f"G1: the grown state folds through the thickness at nodes {bad[:8].tolist()}: "

@@ -1069,9 +1069,15 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
             try:
                 dt = _step_back(problem, saved, t, dt, min_dt, opts, history, "step")
             except SolveError as exc:
-                exc.args = (exc.args[0] + _limit_point_hint(problem, prev, here, t),)
+                _add_hint(exc, _limit_point_hint(problem, prev, here, t))
                 raise
     return history
+
+
+def _add_hint(exc, hint):
+    """Append a likely cause ('' for none) to the message of a SolveError."""
+    if hint:
+        exc.args = (f"{exc}; {hint}",)
 
 
 def _limit_point_hint(problem, prev, here, t):
@@ -1091,7 +1097,7 @@ def _limit_point_hint(problem, prev, here, t):
     t_c = t + (t - prev.t) * now ** -2 / (before ** -2 - now ** -2)
     if t_c > 1.0:
         return ""
-    return (f"; the path turns back near t = {t_c:.4g} (a limit point: a load or pressure maximum, "
+    return (f"the path turns back near t = {t_c:.4g} (a limit point: a load or pressure maximum, "
             f"a snap-through): |dx/dt| grows like 1/sqrt({t_c:.4g} - t) from t = {prev.t:.6g} to "
             f"{t:.6g}, and there it would move the shell by {reach:.3g} times its size over the rest "
             f"of the load; path=\"arclength\" follows the path through it")
@@ -1492,9 +1498,8 @@ class Solvable:
         except SolveError as exc:
             exc.result = self._result(exc.history, time.perf_counter() - t0, False, exc.last_t)
             hint = getattr(self, "_failure_hint", None)       # engines that know a likely cause
-            note = hint() if hint is not None else ""
-            if note:
-                exc.args = (f"{exc}; {note}",)
+            if hint is not None:
+                _add_hint(exc, hint())
             raise
         return self._result(history, time.perf_counter() - t0, True, history.steps[-1][0])
 

@@ -291,8 +291,7 @@ def dkt_active_elements(mesh, h):
     tri, X = mesh.triangles, mesh.vertices
     edges = np.stack([X[tri[:, (k + 1) % 3]] - X[tri[:, k]] for k in range(3)], axis=1)
     longest = np.linalg.norm(edges, axis=2).max(axis=1)
-    height = np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1) / longest
-    return (longest < h) | (height < 0.5 * h)
+    return (longest < h) | (2.0 * mesh.areas / longest < 0.5 * h)
 
 
 class DKTStrainGradient:
