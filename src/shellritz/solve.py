@@ -472,7 +472,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
         converging = len(gnorms) > CONVERGING_SPAN and gnorm <= CONVERGING_DROP * gnorms[-1 - CONVERGING_SPAN]
         if (it >= opts.max_iter and not converging) or it == 2 * opts.max_iter or stalled:
             if opts.verbose:
-                print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e} after {it} iterations)")
+                print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e} after {it} iterations, "
+                      f"tolerance {tol:.3e})")
             return None
         setup = 0.0
         if not factorized:
@@ -1026,6 +1027,7 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
         return _arclength(problem, steps, opts, history, lin, g_ref, t, min_dt)
     max_dt = opts.max_dt or 1.0
     dt = min((1.0 - t_start) / max(1, steps), max_dt)
+    first_dt = dt
     prev = None          # _PathPoint: the previous converged point
     here = None          # _PathPoint: the current one (its tangent computed once)
     failed_here = False  # a step from the current point failed: the retries use the secant
@@ -1050,7 +1052,12 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
         # of t puts on the converged state, dt |dg/dt| (known with the
         # tangent; else the gradient at the start of the step stands for it,
         # which a good predictor makes far too small)
-        g_step = max(g_ref, problem.load_scale(), dt * here.gt_norm)
+        # (at least that of the first step: a step cut near a critical
+        # point is held to the tolerance of the steps before it, not to one
+        # that falls with dt below the round-off of |g|: the free 4-ring
+        # disc's steps cut to dt = 1e-4 near a near-symmetry (t = 0.937)
+        # asked for 1.5e-14 where |g| stalls at about 1e-12, and failed)
+        g_step = max(g_ref, problem.load_scale(), max(dt, first_dt) * here.gt_norm)
         try:
             ok = equilibrium(problem, t_new, opts, history, g_step, lin, may_cut=0.5 * dt >= min_dt)
         except LinearSolverError as exc:
