@@ -7,7 +7,7 @@ test_benchmark_scenes.py; necking: test_necking.py.)"""
 import numpy as np
 import pytest
 
-from shellritz import NeoHookean, Shell, SolveError, StVenantKirchhoff, shapes
+from shellritz import NeoHookean, Shell, SolveError, StabilityWarning, StVenantKirchhoff, shapes
 from shellritz.discretize.planestrain import PlaneStrainShell
 from shellritz.linalg import pardiso_available
 from shellritz.scenes import leaf
@@ -725,6 +725,45 @@ def test_trust_region_steps_stay_within_the_radius_and_cut_steps_keep_their_tole
               if a.t == b.t and not a.accepted and np.isfinite(a.radius) and b.step > a.radius * (1 + 1e-9)]
     assert not beyond
     assert sum(not ok for _, ok in history.steps) >= 3 and history.stable
+
+
+def test_amg_load_steps_keep_a_tolerance_relative_to_the_growth_force():
+    """With AMG (no factorization, no tangent dx/dt) |dg/dt| was not computed,
+    so a growth scene's tolerance was relative to the gradient at the
+    predicted state only (rtol times 1e-6 and below): the free 3-ring disc
+    failed at t = 0.25.  Observed now: it converges (194 Newton iterations)
+    to the buckled state the factorization finds."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StabilityWarning)
+        amg = _free_grown_disc(False).solve(steps=4, verbose=False, linear="amg")
+    direct = _free_grown_disc(False).solve(steps=4, verbose=False)
+    assert direct.history.stable
+    assert amg.energy == pytest.approx(direct.energy, rel=1e-9)
+
+
+def test_a_solve_whose_stability_is_not_assessed_says_so():
+    """AMG gives no inertia, and stability="auto" does not run LOBPCG with
+    it: a disc grown symmetrically from its flat reference (centre clamped,
+    3 rings) stays flat, an unstable equilibrium (energy 1.38e-3 where the
+    factorization's escape finds the buckled 4.34e-4).  The solve warns;
+    stability="off" asks for no assessment and gets no warning; with the
+    factorization the state is assessed and left."""
+    import warnings
+
+    def centred():
+        s = _free_grown_disc(False)
+        s.clamp(s.mesh.nodes_where(lambda X: X[:, 0] ** 2 + X[:, 1] ** 2 < 1e-12))
+        return s
+
+    with pytest.warns(StabilityWarning, match="not assessed"):
+        flat = centred().solve(steps=4, verbose=False, linear="amg")
+    assert flat.history.stable is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)
+        centred().solve(steps=4, verbose=False, linear="amg", stability="off")
+        buckled = centred().solve(steps=4, verbose=False)
+    assert buckled.history.stable and buckled.energy < 0.5 * flat.energy
 
 
 def test_a_load_path_failing_at_a_limit_point_says_so():

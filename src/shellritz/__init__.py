@@ -13,9 +13,9 @@ from .materials import (CubicStretch, InvariantLaw, LinearIsotropic, NeoHookean,
 from .mesh import Mesh, MeshError
 from .model import ShellError
 from .shell import Result, Shell
-from .solve import EvaluationError, SolveError
+from .solve import EvaluationError, SolveError, StabilityWarning
 from .nested import coarsen, solve_nested
 
 __all__ = ["NeoHookean", "CubicStretch", "StVenantKirchhoff", "LinearIsotropic", "PowerLawHardening",
            "InvariantLaw", "invariant_law_from_sympy", "Mesh", "MeshError", "Shell",
-           "Result", "ShellError", "SolveError", "EvaluationError", "coarsen", "solve_nested"]
+           "Result", "ShellError", "SolveError", "EvaluationError", "StabilityWarning", "coarsen", "solve_nested"]

@@ -797,6 +797,21 @@ def _line_search(problem, x, p, E, gnorm, slope, opts, noise):
 
 
 # ------------------------------------------------------------------ stability
+class StabilityWarning(UserWarning):
+    """A solve ended on a state whose stability was not assessed."""
+
+
+# AMG gives no inertia, and LOBPCG preconditioned by AMG costs hundreds of
+# W-cycles on a large mesh (the 24k leaf: 26 s on top of a 68 s level), so
+# stability="auto" assesses nothing with AMG; the result may then be an
+# unstable equilibrium: a disc grown symmetrically from the flat reference
+# stays flat (energy 1.38e-3 where the buckled state has 4.33e-4)
+STABILITY_NOT_ASSESSED = (
+    "the stability of the solved state was not assessed (linear solver without a "
+    "factorization: AMG); it may be an unstable equilibrium, e.g. a symmetric state that "
+    "should buckle.  stability=\"eigen\" computes the lowest eigenvalues (LOBPCG "
+    "preconditioned by AMG) and leaves unstable states; stability=\"off\" silences this warning")
+
 # LOBPCG's residual tolerance, relative to max |diag K|: a thin shell's
 # lowest eigenvalues are far below its largest entries (the leaf: 4e-10 to
 # 4e-9 of max |diag| 0.2), and an absolute 1e-8 left residuals as large as
@@ -1130,11 +1145,13 @@ def _tangent(problem, lin, x, t):
     -dg/dt, the implicit function theorem on g(x, t) = 0) with the
     factorization of K at x (left by the stability assessment, or by the
     arc-length step); dx/dt is None without one (AMG) or where K is
-    singular."""
-    if not lin.direct:
-        return None, 0.0
+    singular.  |dg/dt| is known either way: it scales the tolerance of the
+    next step (without it, with AMG, a growth scene's tolerance was relative
+    to the gradient at the predicted state, 1e-15 and below on a disc)."""
     gt = _parameter_derivative(problem, x, t)
     gt_norm = float(np.linalg.norm(gt))
+    if not lin.direct:
+        return None, gt_norm
     try:
         d = lin.solver.solve(-gt)
     except LinearSolverError:
@@ -1508,6 +1525,8 @@ class Solvable:
             if hint is not None:
                 _add_hint(exc, hint())
             raise
+        if history.stable is None and opts.stability == "auto":
+            warnings.warn(STABILITY_NOT_ASSESSED, StabilityWarning, stacklevel=2)
         return self._result(history, time.perf_counter() - t0, True, history.steps[-1][0])
 
     def _solve_through_thicknesses(self, path, steps, verbose, min_dt, monitor, start, options):
