@@ -766,6 +766,24 @@ def test_a_solve_whose_stability_is_not_assessed_says_so():
     assert buckled.history.stable and buckled.energy < 0.5 * flat.energy
 
 
+def test_arc_length_lands_at_t_1_to_the_tolerance_of_its_path():
+    """Arc length follows a symmetrically grown disc (centre clamped, 3
+    rings) along its flat branch through the bifurcations (31 negative
+    eigenvalues at t = 1) and lands at t = 1 by Newton, escaping from
+    there.  The landing's tolerance was rtol times the loads (none) or the
+    gradient where it starts (2.8e-10): 9e-16, unreachable; now the
+    corrector's, rtol |dg/dt|.  Observed: 393 Newton iterations, the
+    stable buckled state of the load path (energy to 1e-9)."""
+    def centred():
+        s = _free_grown_disc(False)
+        s.clamp(s.mesh.nodes_where(lambda X: X[:, 0] ** 2 + X[:, 1] ** 2 < 1e-12))
+        return s
+    arc = centred().solve(steps=4, verbose=False, path="arclength")
+    load = centred().solve(steps=4, verbose=False)
+    assert arc.history.stable and load.history.stable
+    assert arc.energy == pytest.approx(load.energy, rel=1e-9)
+
+
 def test_a_load_path_failing_at_a_limit_point_says_so():
     """A sphere (80 triangles, h = 0.02, nu = 0.45) inflated by an inner
     pressure twice its maximum (about 1.24 mu h / R for a thin neo-Hookean

@@ -1358,7 +1358,9 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
             s = (1.0 - t) / (tn - t)
             problem.set_parameter(1.0)
             problem.set_free_state(x + s * (xn - x))
-            if not equilibrium(problem, 1.0, opts, history, max(g_ref, problem.load_scale()), lin):
+            # (to the path's force scale, as the corrector: without |dg/dt|
+            # a growth path asked 9e-16 here, and the free 3-ring disc failed)
+            if not equilibrium(problem, 1.0, opts, history, g_scale, lin):
                 raise SolveError("arc length: no equilibrium at t = 1 near the path", last_t=t,
                                  history=history)
             history.steps.append((1.0, True))
