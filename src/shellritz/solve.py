@@ -1359,7 +1359,7 @@ def _arclength(problem, steps, opts, history, lin, g_ref, t, min_ds):
             problem.set_parameter(1.0)
             problem.set_free_state(x + s * (xn - x))
             # (to the path's force scale, as the corrector: without |dg/dt|
-            # a growth path asked 9e-16 here, and the free 3-ring disc failed)
+            # a growth path asked 9e-16 here: the centre-clamped 3-ring disc failed)
             if not equilibrium(problem, 1.0, opts, history, g_scale, lin):
                 raise SolveError("arc length: no equilibrium at t = 1 near the path", last_t=t,
                                  history=history)
