@@ -49,6 +49,13 @@ SLIVER_QUALITY = 1e-6
 POOR_QUALITY = 1e-2
 
 
+def _worst(quality, below):
+    """The triangles of shape quality below ``below``, worst first (only
+    those are sorted: a mesh of 2M triangles has few or none)."""
+    idx = np.flatnonzero(quality < below)
+    return idx[np.argsort(quality[idx], kind="stable")]
+
+
 def _same_positions(points):
     """np.unique (first, inverse, counts) of the points rounded to 1e-10 of the
     mesh size: points at one position share their entry."""
@@ -184,8 +191,7 @@ class Mesh:
                             f"(vertices {_list(tri[flat[0]])} are collinear)")
         # shape quality 4 sqrt(3) area / (sum of squared edges): 1 equilateral, 0 degenerate
         quality = 2.0 * np.sqrt(3.0) * area2 / edges2.sum(axis=0)
-        order = np.argsort(quality)
-        sliver = order[quality[order] < SLIVER_QUALITY]
+        sliver = _worst(quality, SLIVER_QUALITY)
         if len(sliver):
             raise MeshError(f"nearly degenerate triangles {_list(sliver)}: shape quality "
                             f"{quality[sliver[0]]:.2e} (1 for an equilateral triangle; below "
@@ -207,8 +213,7 @@ class Mesh:
     def poor_triangles(self):
         """The triangles of shape quality below POOR_QUALITY, worst first, in
         words ('' if none)."""
-        order = np.argsort(self.quality)
-        poor = order[self.quality[order] < POOR_QUALITY]
+        poor = _worst(self.quality, POOR_QUALITY)
         if not len(poor):
             return ""
         return (f"{len(poor)} poorly shaped triangles ({_list(poor)}), shape quality down to "

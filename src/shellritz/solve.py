@@ -801,9 +801,10 @@ class StabilityWarning(UserWarning):
     """A solve ended on a state whose stability was not assessed."""
 
 
-# AMG gives no inertia, and LOBPCG preconditioned by AMG costs hundreds of
-# W-cycles on a large mesh (the 24k leaf: 26 s on top of a 68 s level), so
-# stability="auto" assesses nothing with AMG; the result may then be an
+# AMG gives no inertia, and LOBPCG preconditioned by AMG (a block of 5
+# vectors, up to 200 iterations, a W-cycle per vector each) took 26 s on top
+# of the 68 s finest level of the nested 24k leaf, so stability="auto"
+# assesses nothing with AMG; the result may then be an
 # unstable equilibrium: a disc grown symmetrically from the flat reference
 # stays flat (energy 1.38e-3 where the buckled state has 4.33e-4)
 STABILITY_NOT_ASSESSED = (
