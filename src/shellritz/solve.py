@@ -465,12 +465,22 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             x, E, g, K, gnorm = _back_to(problem, watch)     # an equilibrium above the start
             watch, watch_spent, factorized, last_step = None, True, False, np.inf
             fast = may_reuse = False
+        small_drop = 1e-6 * max(problem.energy_magnitude(), abs(E))
         stalled = (watch is None and len(gnorms) >= 8 and gnorm > 0.5 * gnorms[-7]
-                   and energies[-7] - E <= 1e-6 * max(problem.energy_magnitude(), abs(E)))
+                   and energies[-7] - E <= small_drop)
         # an iteration still converging at max_iter (|g| down CONVERGING_DROP
-        # over the last CONVERGING_SPAN iterations) goes on, up to twice as long
+        # over the last CONVERGING_SPAN iterations) goes on, up to twice as long;
+        # so does one the caller cannot retry with a smaller step (the start,
+        # the arc-length landing at t = 1, a step at min_dt) while its energy
+        # still falls (the landing of the centre-clamped 3-ring disc, from the
+        # flat branch to the buckled state, stopped at max_iter still falling,
+        # |g| 1.4e-5 at the 48th iteration, with another summation order of
+        # the assembly, and converged at the 59th)
         converging = len(gnorms) > CONVERGING_SPAN and gnorm <= CONVERGING_DROP * gnorms[-1 - CONVERGING_SPAN]
-        if (it >= opts.max_iter and not converging) or it == 2 * opts.max_iter or stalled:
+        descending = (not may_cut and len(energies) > CONVERGING_SPAN
+                      and energies[-1 - CONVERGING_SPAN] - E > small_drop)
+        if ((it >= opts.max_iter and not (converging or descending)) or it == 2 * opts.max_iter
+                or stalled):
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e} after {it} iterations, "
                       f"tolerance {tol:.3e})")
