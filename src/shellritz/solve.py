@@ -472,10 +472,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
         # over the last CONVERGING_SPAN iterations) goes on, up to twice as long;
         # so does one the caller cannot retry with a smaller step (the start,
         # the arc-length landing at t = 1, a step at min_dt) while its energy
-        # still falls (the landing of the centre-clamped 3-ring disc, from the
-        # flat branch to the buckled state, stopped at max_iter still falling,
-        # |g| 1.4e-5 at the 48th iteration, with another summation order of
-        # the assembly, and converged at the 59th)
+        # still falls (the centre-clamped 3-ring disc's landing from the flat
+        # branch to the buckled state: tests/test_solver.py)
         converging = len(gnorms) > CONVERGING_SPAN and gnorm <= CONVERGING_DROP * gnorms[-1 - CONVERGING_SPAN]
         descending = (not may_cut and len(energies) > CONVERGING_SPAN
                       and energies[-1 - CONVERGING_SPAN] - E > small_drop)
