@@ -334,7 +334,11 @@ TRUST_SHRINK = 0.5
 # reduced |g| a hundredfold after SLOW_NEWTON of them is too large: Newton
 # creeps along a curved valley (a very thin shell's inextensional path) with
 # good but short steps, where a smaller step converges in a few iterations
-# (thin panel h/R = 1e-3: 237 -> 129 Newton iterations, stability map)
+# (thin panel h/R = 1e-3: 237 -> 129 Newton iterations, stability map).
+# The lowest |g| of the run counts: near a nearly singular Hessian |g| goes
+# up and down on the way (the 6-ring leaf's first step, 2026-12-06: 156-fold
+# down at the run's 11th step, 77-fold at its 13th; judged by its last |g|
+# the step was cut six times, to dt = 1/256)
 SLOW_NEWTON = 10
 # a load step's Newton iterations that reach max_iter while |g| still falls
 # tenfold over the last five go on (to 2 max_iter at most): giving the step
@@ -451,6 +455,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
     watch_spent = opts.watchdog <= 0
     pd_since = None             # |g| at the first of the current run of positive definite Hessians
     pd_run = 0
+    pd_best = None              # the lowest |g| of that run
     fast = False                # the last step was a full Newton step that cut |g| tenfold
     may_reuse = False           # so the previous factorization may serve this step (fast, and
     #                             not yet tried and failed at this x)
@@ -477,7 +482,10 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
         converging = len(gnorms) > CONVERGING_SPAN and gnorm <= CONVERGING_DROP * gnorms[-1 - CONVERGING_SPAN]
         descending = (not may_cut and len(energies) > CONVERGING_SPAN
                       and energies[-1 - CONVERGING_SPAN] - E > small_drop)
-        if ((it >= opts.max_iter and not (converging or descending)) or it == 2 * opts.max_iter
+        # (not within a watchdog probation, which ends within opts.watchdog
+        # steps: its uphill iterates say nothing of the descent)
+        if ((it >= opts.max_iter and watch is None and not (converging or descending))
+                or it == 2 * opts.max_iter
                 or stalled):
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e} after {it} iterations, "
@@ -496,10 +504,12 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
             trust = _uses_trust_region(opts, lin.solver)
         exact = lin.solver.current_is_positive_definite()
         pd_run, pd_since = (pd_run + 1, pd_since or gnorm) if exact else (0, None)
-        if may_cut and pd_run > SLOW_NEWTON and gnorm > 1e-2 * pd_since:
+        pd_best = min(pd_best, gnorm) if exact and pd_run > 1 else gnorm
+        if may_cut and pd_run > SLOW_NEWTON and pd_best > 1e-2 * pd_since:
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton converges slowly on positive definite Hessians "
-                      f"(|g| {gnorm:.3e} after {SLOW_NEWTON} steps from {pd_since:.3e}): smaller step")
+                      f"(|g| {pd_best:.3e} at best after {SLOW_NEWTON} steps from {pd_since:.3e}): "
+                      "smaller step")
             return None
         matvec = lower_matvec(K)
         eta = _forcing(opts, exact and not reused, gnorm, gnorm_prev, eta)
