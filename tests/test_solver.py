@@ -114,11 +114,9 @@ def test_predictor_takes_the_tangent_alone_after_a_bifurcation():
     through the flat start and the buckled state at t = 0.25 (its trapezoid
     defect 0.62, SMOOTH_DEFECT 0.1) led into a saddle and a failed step (76
     Newton iterations); the next step starts from the tangent alone, the
-    later ones from the cubic again, no failed step, the same stable
-    equilibrium.  Newton iterations, tangent against secant: 48 / 40 (the
-    kernels compiled with reassociation, kernels.KERNEL), 39 / 44 without
-    on the same machine, 33 / 39 on another: round-off decides which takes
-    fewer, so it is not asserted.  (Without reassociation the first step had
+    later ones from the cubic again: 39 Newton iterations against 44 from
+    the secant (33 against 39 on a machine of other round-off), no failed
+    step, the same stable equilibrium.  (On this machine the first step had
     been cut six times, to dt = 1/256, by the slow-Newton test judging the
     run by its last |g|, 77-fold down, where it had been 156-fold down two
     steps before: now the run's lowest |g| counts, solve.SLOW_NEWTON.)"""
@@ -127,6 +125,7 @@ def test_predictor_takes_the_tangent_alone_after_a_bifurcation():
     assert h.predictors == ["current state", "tangent", "Hermite", "Hermite"]
     assert runs["secant"].history.predictors == ["current state", "secant", "secant", "secant"]
     assert all(ok for _, ok in h.steps)
+    assert len(h.iterations) < len(runs["secant"].history.iterations)
     assert runs["tangent"].energy == pytest.approx(runs["secant"].energy, rel=1e-10)
     assert h.stable and runs["secant"].history.stable
 
@@ -713,58 +712,29 @@ def test_a_free_body_buckles_to_the_equilibrium_of_the_supported_one():
     assert free.energy == pytest.approx(held.energy, rel=1e-10)
 
 
-def test_trust_region_steps_stay_within_the_radius():
+def test_trust_region_steps_stay_within_the_radius_and_cut_steps_keep_their_tolerance():
     """The free 4-ring disc's buckled shape has a soft mode (a near-symmetry)
     whose eigenvalue changes sign near t = 0.94, where load steps are cut.
-    Where K's factorization is positive definite the step is the Newton
+    (1) Where K's factorization is positive definite the step is the Newton
     step (r = inf), scaled onto the trust-region boundary; so must be the
     first CG direction where K nonetheless has negative curvature: unscaled,
-    the same rejected step came back 261 times.  Observed: none beyond the
-    radius, 152 Newton iterations, 8 cut steps, a stable state (148 and 2
-    with the kernels compiled without reassociation: how many steps are
-    cut here, round-off decides)."""
-    history = _free_grown_disc(False, rings=4).solve(steps=4, verbose=False).history
+    the same rejected step came back 261 times.  (2) A cut step keeps the
+    tolerance of the first step: relative to dt |dg/dt| it fell to 1.5e-14
+    at dt = 1e-4, below where |g| stalls (about 1e-12), and the solve failed
+    at t = 0.937.  Observed then: none beyond the radius, 121 Newton
+    iterations, 4 cut steps, a stable state.  Since the slow-Newton test
+    judges a run by its lowest |g| (solve.SLOW_NEWTON) the free 4-ring disc
+    cuts two steps, to dt = 1/8, too few for (2); the centre-clamped 8-ring
+    disc cuts 17, down to dt = 1/4096.  Observed: none beyond the radius,
+    303 Newton iterations, a stable state."""
+    s = _free_grown_disc(False, rings=8)
+    s.clamp(s.mesh.nodes_where(lambda X: X[:, 0] ** 2 + X[:, 1] ** 2 < 1e-12))
+    history = s.solve(steps=4, verbose=False).history
     its = history.iterations
-    rejected = [a for a in its if not a.accepted and np.isfinite(a.radius)]
     beyond = [b for a, b in zip(its, its[1:])
               if a.t == b.t and not a.accepted and np.isfinite(a.radius) and b.step > a.radius * (1 + 1e-9)]
-    assert rejected and not beyond
-    assert history.stable
-
-
-def test_cut_load_steps_keep_the_tolerance_of_the_first_step(monkeypatch):
-    """A load step retried with a smaller dt keeps the force scale of the
-    first step (the tolerance is rtol times it): relative to dt |dg/dt| it
-    fell to 1.5e-14 at dt = 1e-4, below where |g| stalls (about 1e-12), and
-    the free 4-ring disc failed at t = 0.937.  Which disc cuts how far,
-    round-off decides; the free 5-ring disc with max_iter = 8 cuts its steps
-    (8-10 times, to dt = 1/512, in the two arithmetics tried), and every
-    retry from one point with dt up to the first step's must be held to the
-    same force scale (under the old rule: halved with each cut)."""
-    import shellritz.solve as solve_module
-    calls = []
-    real = solve_module.equilibrium
-
-    def spy(problem, t, opts, history, g_ref, lin, may_cut=False):
-        ok = real(problem, t, opts, history, g_ref, lin, may_cut)
-        calls.append((t, g_ref, ok))
-        return ok
-    monkeypatch.setattr(solve_module, "equilibrium", spy)
-    result = _free_grown_disc(False, rings=5).solve(steps=4, verbose=False, max_iter=8)
-    assert result.history.stable
-    start, first_dt, retries = 0.0, 0.25, []
-    for t, g_ref, ok in calls[1:]:               # calls[0]: the start, t = 0
-        if t - start <= first_dt * (1 + 1e-12):
-            retries.append((start, g_ref))
-        if ok:
-            start = t
-    by_start = {}
-    for start, g_ref in retries:
-        by_start.setdefault(start, []).append(g_ref)
-    cut = [v for v in by_start.values() if len(v) > 1]
-    assert len(cut) >= 2
-    for scales in cut:
-        assert max(scales) == pytest.approx(min(scales), rel=1e-12)
+    assert not beyond
+    assert sum(not ok for _, ok in history.steps) >= 3 and history.stable
 
 
 def test_amg_load_steps_keep_a_tolerance_relative_to_the_growth_force():
@@ -819,8 +789,7 @@ def test_arc_length_lands_at_t_1_to_the_tolerance_of_its_path():
     watchdog probation under way at max_iter ends first (its uphill iterates
     say nothing of the descent): on another machine the landing stopped on
     probation at its 38th iteration, one step after |g| = 4e-6.  Observed:
-    393 Newton iterations, 45 at t = 1 (395 and 47 with the kernels
-    compiled without reassociation), the stable buckled state of the load
+    395 Newton iterations, 47 at t = 1, the stable buckled state of the load
     path (energy to 1e-9)."""
     def centred():
         s = _free_grown_disc(False)
