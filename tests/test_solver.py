@@ -724,9 +724,11 @@ def test_trust_region_steps_stay_within_the_radius_and_cut_steps_keep_their_tole
     at t = 0.937.  Observed then: none beyond the radius, 121 Newton
     iterations, 4 cut steps, a stable state.  Since the slow-Newton test
     judges a run by its lowest |g| (solve.SLOW_NEWTON) the free 4-ring disc
-    cuts two steps, to dt = 1/8, too few for (2); the centre-clamped 8-ring
-    disc cuts 17, down to dt = 1/4096.  Observed: none beyond the radius,
-    303 Newton iterations, a stable state."""
+    cuts two steps, to dt = 1/8; the centre-clamped 8-ring disc cuts 17,
+    down to dt = 1/4096.  Observed: none beyond the radius, 303 Newton
+    iterations, a stable state.  Its cut steps converge under the old
+    tolerance too (tried): (2) is checked directly by
+    test_cut_load_steps_keep_the_tolerance_of_the_first_step."""
     s = _free_grown_disc(False, rings=8)
     s.clamp(s.mesh.nodes_where(lambda X: X[:, 0] ** 2 + X[:, 1] ** 2 < 1e-12))
     history = s.solve(steps=4, verbose=False).history
@@ -735,6 +737,42 @@ def test_trust_region_steps_stay_within_the_radius_and_cut_steps_keep_their_tole
               if a.t == b.t and not a.accepted and np.isfinite(a.radius) and b.step > a.radius * (1 + 1e-9)]
     assert not beyond
     assert sum(not ok for _, ok in history.steps) >= 3 and history.stable
+
+
+def test_cut_load_steps_keep_the_tolerance_of_the_first_step(monkeypatch):
+    """A load step retried with a smaller dt keeps the force scale of the
+    first step (the tolerance is rtol times it): relative to dt |dg/dt| it
+    fell to 1.5e-14 at dt = 1e-4, below where |g| stalls (about 1e-12), and
+    the free 4-ring disc failed at t = 0.937.  Which disc cuts how far,
+    round-off decides; the free 5-ring disc with max_iter = 8 cuts its steps
+    (8-10 times, to dt = 1/512, in both arithmetics tried: IEEE order and
+    the reassociating build of branch fastmath-kernels), and every
+    retry from one point with dt up to the first step's must be held to the
+    same force scale (under the old rule: halved with each cut)."""
+    import shellritz.solve as solve_module
+    calls = []
+    real = solve_module.equilibrium
+
+    def spy(problem, t, opts, history, g_ref, lin, may_cut=False):
+        ok = real(problem, t, opts, history, g_ref, lin, may_cut)
+        calls.append((t, g_ref, ok))
+        return ok
+    monkeypatch.setattr(solve_module, "equilibrium", spy)
+    result = _free_grown_disc(False, rings=5).solve(steps=4, verbose=False, max_iter=8)
+    assert result.history.stable
+    start, first_dt, retries = 0.0, 0.25, []
+    for t, g_ref, ok in calls[1:]:               # calls[0]: the start, t = 0
+        if t - start <= first_dt * (1 + 1e-12):
+            retries.append((start, g_ref))
+        if ok:
+            start = t
+    by_start = {}
+    for start, g_ref in retries:
+        by_start.setdefault(start, []).append(g_ref)
+    cut = [v for v in by_start.values() if len(v) > 1]
+    assert len(cut) >= 2
+    for scales in cut:
+        assert max(scales) == pytest.approx(min(scales), rel=1e-12)
 
 
 def test_amg_load_steps_keep_a_tolerance_relative_to_the_growth_force():
