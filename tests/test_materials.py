@@ -211,7 +211,14 @@ def test_svk_closed_form_matches_its_invariant_form():
 
 @pytest.mark.parametrize("name", sorted(LAWS))
 def test_third_derivative_vector_is_the_contracted_matrix(name):
-    """mat_d3_vec (the point kernel's D3W[., c, d]) is D3W[., ., c] d."""
+    """mat_d3_vec (the point kernel's D3W[., c, d]) is D3W[., ., c] d, to
+    round-off: the two sum different products in different orders, the
+    power law's terms cancel (largest entry 14, terms larger), and the
+    kernels fuse products into sums (kernels/small.py, fma).  Measured
+    differences, of the largest entry: 2.0e-13 for the power law with the
+    fused products (2.1e-13 with reassociated sums, branch
+    fastmath-kernels), below 1e-13 in IEEE order; an error in the algebra
+    is of order one."""
     from shellritz.kernels.material import mat_d3, mat_d3_vec, mat_prepare, new_state
     law = LAWS[name]()
     rng = np.random.default_rng(7)
@@ -222,7 +229,7 @@ def test_third_derivative_vector_is_the_contracted_matrix(name):
     m3, v3 = np.zeros((9, 9)), np.zeros(9)
     mat_d3(*st, c, m3)
     mat_d3_vec(*st, c, d, v3)
-    assert np.abs(v3 - m3 @ d).max() <= 1e-13 * max(1.0, np.abs(m3).max())
+    assert np.abs(v3 - m3 @ d).max() <= 1e-12 * max(1.0, np.abs(m3).max())
 
 
 def test_user_law_must_be_stress_free_at_identity():

@@ -243,3 +243,19 @@ def test_face_pressure_at_fixed_geometry_is_the_equivalent_face_traction():
         np.testing.assert_allclose(a.y2, b.y2, rtol=1e-12, atol=1e-14)
         if level != "consistent":
             assert a.L == pytest.approx(b.L, rel=1e-13)
+
+
+def test_fma_rounds_once_where_the_cpu_fuses():
+    """kernels.small.fma is a * b + c in one rounding on CPUs with FMA, and
+    a product then a sum elsewhere: with x = 1 + 2^-30, x * x = 1 + 2^-29 +
+    2^-60 rounds to 1 + 2^-29, so fma(x, x, -(x * x)) is the lost 2^-60
+    where fused and 0 where not."""
+    from numba import njit
+
+    from shellritz.kernels.small import FUSED, fma
+
+    @njit
+    def residual(x):
+        return fma(x, x, -(x * x))
+
+    assert residual(1.0 + 2.0 ** -30) == (2.0 ** -60 if FUSED else 0.0)

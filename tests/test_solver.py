@@ -712,31 +712,30 @@ def test_a_free_body_buckles_to_the_equilibrium_of_the_supported_one():
     assert free.energy == pytest.approx(held.energy, rel=1e-10)
 
 
-def test_trust_region_steps_stay_within_the_radius_and_cut_steps_keep_their_tolerance():
-    """The free 4-ring disc's buckled shape has a soft mode (a near-symmetry)
-    whose eigenvalue changes sign near t = 0.94, where load steps are cut.
-    (1) Where K's factorization is positive definite the step is the Newton
+def test_trust_region_steps_stay_within_the_radius():
+    """Grown discs buckle into shapes with a soft mode (a near-symmetry: the
+    free 4-ring disc's eigenvalue changes sign near t = 0.94) where
+    trust-region steps are rejected and load steps cut.
+    Where K's factorization is positive definite the step is the Newton
     step (r = inf), scaled onto the trust-region boundary; so must be the
     first CG direction where K nonetheless has negative curvature: unscaled,
-    the same rejected step came back 261 times.  (2) A cut step keeps the
-    tolerance of the first step: relative to dt |dg/dt| it fell to 1.5e-14
-    at dt = 1e-4, below where |g| stalls (about 1e-12), and the solve failed
-    at t = 0.937.  Observed then: none beyond the radius, 121 Newton
-    iterations, 4 cut steps, a stable state.  Since the slow-Newton test
-    judges a run by its lowest |g| (solve.SLOW_NEWTON) the free 4-ring disc
-    cuts two steps, to dt = 1/8; the centre-clamped 8-ring disc cuts 17,
-    down to dt = 1/4096.  Observed: none beyond the radius, 303 Newton
-    iterations, a stable state.  Its cut steps converge under the old
-    tolerance too (tried): (2) is checked directly by
+    the same rejected step came back 261 times.  How many steps are rejected
+    or cut on which disc, round-off decides: the centre-clamped 8-ring disc
+    took 303 Newton iterations and 17 cut steps in IEEE order on one
+    machine, 54 iterations, 4 rejected trust-region steps and 1 cut step
+    with the kernels' fused multiply-adds (kernels/small.py, fma).  So the
+    test asserts that rejections happen and that no step after one goes
+    beyond the radius; the tolerance of cut steps is checked by
     test_cut_load_steps_keep_the_tolerance_of_the_first_step."""
     s = _free_grown_disc(False, rings=8)
     s.clamp(s.mesh.nodes_where(lambda X: X[:, 0] ** 2 + X[:, 1] ** 2 < 1e-12))
     history = s.solve(steps=4, verbose=False).history
     its = history.iterations
+    rejected = [a for a in its if not a.accepted and np.isfinite(a.radius)]
     beyond = [b for a, b in zip(its, its[1:])
               if a.t == b.t and not a.accepted and np.isfinite(a.radius) and b.step > a.radius * (1 + 1e-9)]
-    assert not beyond
-    assert sum(not ok for _, ok in history.steps) >= 3 and history.stable
+    assert rejected and not beyond
+    assert history.stable
 
 
 def test_cut_load_steps_keep_the_tolerance_of_the_first_step(monkeypatch):

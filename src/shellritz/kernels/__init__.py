@@ -10,6 +10,16 @@ tuples of work arrays cost about a quarter of the point kernel (Hessian
 this (underscored, but part of its target options since the runtime was
 introduced); a kernel compiled with it cannot create arrays, which Numba
 rejects at compile time.
+
+No ``fastmath``: with it (even ``contract`` alone) a first run, which
+compiles the kernels, and later runs, which load them from Numba's cache,
+differed in the last bits (97 of 3,520 gradient entries of a small disc, by
+2e-19), enough to change which load paths pass a nearly singular
+equilibrium and to break the batch's bit-for-bit promise.  Likely cause:
+a callee is optimized again in each caller it is linked into, LLVM's fusing
+depends on the surrounding code, and the copy that runs is not the same in
+the two cases.  The hot products are fused explicitly instead
+(``small.fma``), which rounds the same way in every compilation.
 """
 
 KERNEL = {"cache": True, "_nrt": False}

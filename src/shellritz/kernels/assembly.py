@@ -25,6 +25,7 @@ from ..discretize.regge import (BLEND, N_DATA, N_JET, N_SLOTS, N_W, add_data_hes
 from . import KERNEL
 from .parallel import run_chunks
 from .point import OK, STATUS_TEXT, _reference_geometry, new_scratch, point_kernel
+from .small import fma
 
 ERR_METRIC = 100        # element-level status (the point kernel's are below)
 ELEMENT_STATUS_TEXT = dict(STATUS_TEXT)
@@ -139,8 +140,8 @@ def _add_point(mode, w, b, grad, hess, T15, ge, ke):
             for c in range(3):
                 s = 0.0
                 for a in range(5):
-                    s += b[a, k] * grad[3 * a + c]
-                ge[k, c] += w * s
+                    s = fma(b[a, k], grad[3 * a + c], s)
+                ge[k, c] = fma(w, s, ge[k, c])
     if mode >= 2:
         # T15 = H (b (x) I3): T15[(a,c), (k,c')] = sum_a' H[(a,c),(a',c')] b[a',k]
         for r in range(15):
@@ -148,7 +149,7 @@ def _add_point(mode, w, b, grad, hess, T15, ge, ke):
                 for c2 in range(3):
                     s = 0.0
                     for a2 in range(5):
-                        s += hess[r, 3 * a2 + c2] * b[a2, k]
+                        s = fma(hess[r, 3 * a2 + c2], b[a2, k], s)
                     T15[r, 3 * k + c2] = s
         for k in range(9):
             for c in range(3):
@@ -156,8 +157,8 @@ def _add_point(mode, w, b, grad, hess, T15, ge, ke):
                 for col in range(row, 27):
                     s = 0.0
                     for a in range(5):
-                        s += b[a, k] * T15[3 * a + c, col]
-                    ke[row, col] += w * s
+                        s = fma(b[a, k], T15[3 * a + c, col], s)
+                    ke[row, col] = fma(w, s, ke[row, col])
 
 
 @njit(**KERNEL)

@@ -56,6 +56,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from . import KERNEL
+from .small import fma
 
 
 KIND_INVARIANT = 0
@@ -316,7 +317,7 @@ def _forms(nk, mv, mm, c, qc, gc):
     for a in range(nk):
         s = 0.0
         for p in range(9):
-            s += mv[V_G + a, p] * c[p]
+            s = fma(mv[V_G + a, p], c[p], s)
         gc[a] = s
     for p in range(9):
         qc[0, p] = 2.0 * c[p]
@@ -325,7 +326,7 @@ def _forms(nk, mv, mm, c, qc, gc):
         for p in range(9):
             t = 0.0
             for q in range(9):
-                t += Q[p, q] * c[q]
+                t = fma(Q[p, q], c[q], t)
             qc[a, p] = t
 
 
@@ -604,13 +605,13 @@ def _combination(nk, mv, mm, mp, cAA, c3, C, Dd, wts, out):
         for q in range(p, 9):
             s = 0.0
             for a in range(nk):
-                s += u[a, p] * g[a, q] + g[a, p] * u[a, q]
+                s = fma(u[a, p], g[a, q], fma(g[a, p], u[a, q], s))
             for a in range(1, nk):
-                s += alpha[a] * mm[a, p, q]
+                s = fma(alpha[a], mm[a, p, q], s)
             for pr in range(npair):
                 for b in range(nk):
                     r = 3 * pr + b
-                    s += mv[V_ZS + r, p] * mv[V_QS + r, q] + mv[V_QS + r, p] * mv[V_ZS + r, q]
+                    s = fma(mv[V_ZS + r, p], mv[V_QS + r, q], fma(mv[V_QS + r, p], mv[V_ZS + r, q], s))
             out[p, q] = s
             out[q, p] = s
         out[p, p] += 2.0 * alpha[0]          # Q_I1 = 2 Id
@@ -641,14 +642,14 @@ def _svk_combination(mv, mp, cAA, c3, C, Dd, wts, out):
     if c3.shape[0] > 0:
         for p in range(9):
             for q in range(9):
-                Z[p, q] += c3[p] * A9[q] + A9[p] * c3[q]
+                Z[p, q] += fma(c3[p], A9[q], A9[p] * c3[q])
     for pr in range(wts.shape[0]):
         w = wts[pr]
         c = C[pr]
         d = Dd[pr]
         for p in range(9):
             for q in range(9):
-                Z[p, q] += w * (c[p] * d[q] + d[p] * c[q])
+                Z[p, q] = fma(w, fma(c[p], d[q], d[p] * c[q]), Z[p, q])
     tr = Z[0, 0] + Z[1, 1] + Z[2, 2] + Z[3, 3] + Z[4, 4] + Z[5, 5] + Z[6, 6] + Z[7, 7] + Z[8, 8]
     for J in range(3):
         for L in range(3):
@@ -657,13 +658,13 @@ def _svk_combination(mv, mp, cAA, c3, C, Dd, wts, out):
         Sb[4 * J] += 0.5 * lam * tr
     for p in range(9):
         for q in range(9):
-            Z[p, q] += cAA * A9[p] * A9[q]
+            Z[p, q] = fma(cAA * A9[p], A9[q], Z[p, q])
     for i in range(3):
         for k in range(3):
             n = mu * (Z[3 * i, 3 * k] + Z[3 * i + 1, 3 * k + 1] + Z[3 * i + 2, 3 * k + 2])
             for J in range(3):
                 for L in range(3):
-                    v = lam * Z[3 * i + J, 3 * k + L] + mu * Z[3 * i + L, 3 * k + J]
+                    v = fma(lam, Z[3 * i + J, 3 * k + L], mu * Z[3 * i + L, 3 * k + J])
                     if J == L:
                         v += n
                     if i == k:
@@ -711,12 +712,12 @@ def _c4_sym(x, y, lam, mu, out):
     """out = C4[sym(x^T y)] = lam (x:y) I + mu (x^T y + y^T x) (3x3 flattened)."""
     xy = 0.0
     for p in range(9):
-        xy += x[p] * y[p]
+        xy = fma(x[p], y[p], xy)
     for J in range(3):
         for L in range(3):
             t = 0.0
             for i in range(3):
-                t += x[3 * i + J] * y[3 * i + L] + y[3 * i + J] * x[3 * i + L]
+                t = fma(x[3 * i + J], y[3 * i + L], fma(y[3 * i + J], x[3 * i + L], t))
             out[3 * J + L] = mu * t
         out[4 * J] += lam * xy
 

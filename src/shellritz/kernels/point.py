@@ -47,7 +47,7 @@ from . import KERNEL
 from .parallel import run_chunks
 from .material import (M_AA, S_W, V_P, mat_combination, mat_d3, mat_d3_vec,
                        mat_prepare, new_state)
-from .small import chol3, chol3_inverse, chol3_solve, cross, det3, inv3, mm3, mv3
+from .small import chol3, chol3_inverse, chol3_solve, cross, det3, fma, inv3, mm3, mv3
 
 LEVEL_MEMBRANE = 0
 LEVEL_BENDING = 1
@@ -225,7 +225,7 @@ def _slot(U, C, out):
         for J in range(3):
             s = 0.0
             for p in range(9):
-                s += U[i, p] * C[p, J]
+                s = fma(U[i, p], C[p, J], s)
             out[3 * i + J] = s
 
 
@@ -236,8 +236,8 @@ def _add_to_xi(G, C, coef, out):
         for i in range(3):
             s = 0.0
             for J in range(3):
-                s += G[3 * i + J] * C[p, J]
-            out[3 * p + i] += coef * s
+                s = fma(G[3 * i + J], C[p, J], s)
+            out[3 * p + i] = fma(coef, s, out[3 * p + i])
 
 
 @njit(**KERNEL, inline="always")
@@ -245,7 +245,7 @@ def _matvec9(M, x, out):
     for p in range(9):
         s = 0.0
         for q in range(9):
-            s += M[p, q] * x[q]
+            s = fma(M[p, q], x[q], s)
         out[p] = s
 
 
@@ -254,14 +254,14 @@ def _matvec_block(M, d, k, out):
     """out = M d for a direction d that is zero outside block k (d = e_k (x) w,
     as D0^k and D1a^k)."""
     for p in range(9):
-        out[p] = M[p, 3 * k] * d[3 * k] + M[p, 3 * k + 1] * d[3 * k + 1] + M[p, 3 * k + 2] * d[3 * k + 2]
+        out[p] = fma(M[p, 3 * k + 2], d[3 * k + 2], fma(M[p, 3 * k + 1], d[3 * k + 1], M[p, 3 * k] * d[3 * k]))
 
 
 @njit(**KERNEL, inline="always")
 def _dot9(a, b):
     s = 0.0
     for p in range(9):
-        s += a[p] * b[p]
+        s = fma(a[p], b[p], s)
     return s
 
 
@@ -270,7 +270,7 @@ def _solve_b(Binv, R, out):
     """out[k, q] = -(B^{-1} R)[k, q] for the NV columns of R (3 x NV)."""
     for k in range(3):
         for q in range(NV):
-            out[k, q] = -(Binv[k, 0] * R[0, q] + Binv[k, 1] * R[1, q] + Binv[k, 2] * R[2, q])
+            out[k, q] = -fma(Binv[k, 2], R[2, q], fma(Binv[k, 1], R[1, q], Binv[k, 0] * R[0, q]))
 
 
 @njit(**KERNEL, inline="always")
@@ -289,7 +289,7 @@ def _slot_jacobian(C, Zv, ncol, out):
                 c = C[Y1_BLOCK + p, J]
                 if c != 0.0:
                     for q in range(ncol):
-                        out[r, q] += c * Zv[3 * p + i, q]
+                        out[r, q] = fma(c, Zv[3 * p + i, q], out[r, q])
 
 
 @njit(**KERNEL, inline="always")
@@ -299,7 +299,7 @@ def _h_j(H, Jb, nb, out, transpose=False):
         for q in range(nb):
             s = 0.0
             for r in range(9):
-                s += (H[r, p] if transpose else H[p, r]) * Jb[r, q]
+                s = fma(H[r, p] if transpose else H[p, r], Jb[r, q], s)
             out[p, q] = s
 
 
@@ -310,7 +310,7 @@ def _add_jt_upper(Ja, na, T, out):
         for q in range(a, na):
             s = 0.0
             for p in range(9):
-                s += Ja[p, a] * T[p, q]
+                s = fma(Ja[p, a], T[p, q], s)
             out[a, q] += s
 
 
@@ -321,7 +321,7 @@ def _add_jt(Ja, na, T, nb, out):
         for q in range(nb):
             s = 0.0
             for p in range(9):
-                s += Ja[p, a] * T[p, q]
+                s = fma(Ja[p, a], T[p, q], s)
             out[a, q] += s
 
 
@@ -333,7 +333,7 @@ def _right_map(M, Q, out):
             for L in range(3):
                 s = 0.0
                 for J in range(3):
-                    s += M[p, 3 * k + J] * Q[L, J]
+                    s = fma(M[p, 3 * k + J], Q[L, J], s)
                 out[p, 3 * k + L] = s
 
 
@@ -401,12 +401,12 @@ def point_kernel(mode, level, kind, psi, params, h, v, ref, G0, G1, dG0,
                     for j in range(3):
                         s = 0.0
                         for k in range(3):
-                            s += hess[3 * p + i, 3 * q + k] * E[j, k]
+                            s = fma(hess[3 * p + i, 3 * q + k], E[j, k], s)
                         blk[i, j] = s
                 for i in range(3):
                     for j in range(3):
-                        hess[3 * p + i, 3 * q + j] = (E[i, 0] * blk[0, j] + E[i, 1] * blk[1, j]
-                                                      + E[i, 2] * blk[2, j])
+                        hess[3 * p + i, 3 * q + j] = fma(E[i, 2], blk[2, j], fma(E[i, 1], blk[1, j],
+                                                                                 E[i, 0] * blk[0, j]))
     return L, OK
 
 
@@ -683,7 +683,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     for q in range(NV):
         s = Lx[q]
         for r in range(9):
-            s += lam[r] * cx[r, q]
+            s = fma(lam[r], cx[r, q], s)
         grad[q] = s
     if mode == MODE_GRADIENT:
         return L, OK
@@ -698,7 +698,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
             for q in range(NV):
                 s = cx[3 + 3 * a + k, q]
                 for l in range(3):
-                    s += cx[3 + 3 * a + k, z0 + l] * Zv[l, q]
+                    s = fma(cx[3 + 3 * a + k, z0 + l], Zv[l, q], s)
                 Ra[k, q] = s
         _solve_b(Binv, Ra, Zv[3 + 3 * a:6 + 3 * a])
     # lambda-weighted directions: Xtot = X + g0 (Dl0 + sum_a (t1a Dla + D1la))
@@ -783,7 +783,7 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
             s = 0.0
             for J in range(3):
                 p = 3 * k + J
-                s += D0[k, p] * (T[p, q] + (W01[p, q] if q < NX else 0.0))
+                s = fma(D0[k, p], T[p, q] + (W01[p, q] if q < NX else 0.0), s)
             Ly[k, q] = s
     if pf != 0.0:
         _pressure_hessian(pf, zf, h, cq, iota, ga0, ga1, U, lam, Zv, 9, sc[31], sc[32], hess)
@@ -794,10 +794,10 @@ def _kernel_local(mode, level, kind, psi, params, h, v, H, K, G0, G1, dG0,
     f = g0 / (2.0 * cB)
     for k in range(3):
         for q in range(NV):
-            BLy[k, q] = f * (Binv[k, 0] * Ly[0, q] + Binv[k, 1] * Ly[1, q] + Binv[k, 2] * Ly[2, q])
+            BLy[k, q] = f * fma(Binv[k, 2], Ly[2, q], fma(Binv[k, 1], Ly[1, q], Binv[k, 0] * Ly[0, q]))
     for i in range(NV):
         for j in range(i, NV):
-            hess[i, j] -= Ly[0, i] * BLy[0, j] + Ly[1, i] * BLy[1, j] + Ly[2, i] * BLy[2, j]
+            hess[i, j] -= fma(Ly[2, i], BLy[2, j], fma(Ly[1, i], BLy[1, j], Ly[0, i] * BLy[0, j]))
         for j in range(i):
             hess[i, j] = hess[j, i]
     return L, OK
