@@ -5,6 +5,7 @@ run without heap allocation inside element loops.
 """
 
 import llvmlite.binding as llvm
+import numba
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
@@ -12,18 +13,34 @@ from numba.extending import intrinsic
 
 from . import KERNEL
 
-# Fused multiply-add where the CPU has it (every x86-64 since 2013, every
-# aarch64); elsewhere a product and a sum.
-FUSED = "+fma" in llvm.get_host_cpu_features().flatten().split(",") or llvm.get_process_triple().startswith("aarch64")
+
+def _target_has_fma():
+    """Whether Numba compiles for a CPU with fused multiply-add (every x86-64
+    since 2013, every aarch64): the features Numba is told to target
+    (NUMBA_CPU_NAME / NUMBA_CPU_FEATURES, e.g. "generic" for portable
+    caches) or else the host's."""
+    if llvm.get_process_triple().startswith("aarch64"):
+        return True
+    if numba.config.CPU_NAME not in (None, "host"):
+        features = numba.config.CPU_FEATURES or ""
+    else:
+        try:
+            features = llvm.get_host_cpu_features().flatten()
+        except RuntimeError:            # llvmlite cannot read them on this host
+            return False
+    return "+fma" in features.split(",")
+
+
+# where not, fma is a product and a sum (a call of libm's fma would be slow)
+FUSED = _target_has_fma()
 
 
 @intrinsic
 def fma(typingctx, a, b, c):
     """a * b + c in one rounding (llvm.fma).  The kernels call it explicitly
-    where a product is summed: Numba's ``fastmath={"contract"}`` lets LLVM
-    fuse wherever it sees fit, which depends on how the code was inlined, so
-    a function compiled in the running process and the same function loaded
-    from Numba's cache rounded differently (the batch's bit-for-bit test);
+    where a product is summed: with Numba's ``fastmath={"contract"}`` LLVM
+    fuses where it sees fit, and a run that compiled the kernels and a run
+    that loaded them from Numba's cache rounded differently (kernels/__init__.py);
     an explicit fma rounds the same way in every compilation."""
     if not all(isinstance(x, types.Number) for x in (a, b, c)):
         return None
