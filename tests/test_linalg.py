@@ -748,3 +748,28 @@ def test_cg_solves_the_model_projected_off_the_free_rigid_motions():
     exact = np.zeros(n)
     exact[1:] = np.linalg.solve(K[1:, 1:], -g[1:])
     assert np.allclose(p, exact, rtol=1e-8, atol=1e-12)
+
+
+def test_upper_pattern_is_the_transpose_of_the_lower_one():
+    """DirectSolver's PARDISO input (the upper triangle by rows, 1-based,
+    each entry's position in the lower data, the diagonal's positions) equals
+    SciPy's transpose of the lower pattern, rows sorted; a pattern without a
+    diagonal entry is refused with its row."""
+    from shellritz.linalg import _upper_of_lower
+    n = 300
+    A = sp.random(n, n, density=0.03, random_state=2, format="csr")
+    L = sp.tril(A + A.T + sp.eye(n), format="csr")
+    L.sort_indices()
+    ia, ja, to_upper, diag = _upper_of_lower(L.indptr, L.indices, n)
+    U = sp.csr_matrix((np.arange(L.nnz, dtype=np.float64), L.indices, L.indptr), shape=(n, n)).T.tocsr()
+    U.sort_indices()
+    assert np.array_equal(ia, U.indptr + 1) and np.array_equal(ja, U.indices + 1)
+    assert np.array_equal(to_upper, U.data.astype(np.int64))
+    rows = np.repeat(np.arange(n), np.diff(L.indptr))
+    assert np.array_equal(diag, np.flatnonzero(rows == L.indices))
+    M = L.tolil()
+    M[17, 17] = 0.0
+    M = sp.csr_matrix(M)
+    M.eliminate_zeros()
+    with pytest.raises(LinearSolverError, match="lacks the diagonal entry of 1 rows .first: row 17"):
+        DirectSolver("superlu", n, M.indptr, M.indices)

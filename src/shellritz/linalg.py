@@ -204,7 +204,7 @@ class _PardisoHandle:
     them at every call); the call itself is pypardiso's ctypes binding of
     ``pardiso``."""
 
-    def __init__(self, upper_pattern, factors, single=False):
+    def __init__(self, n, ia, ja, factors, single=False):
         import os
         _locate_mkl()
         import pypardiso
@@ -220,10 +220,9 @@ class _PardisoHandle:
         # (the values handed to PARDISO are then float32)
         ps.set_iparm(28, 1 if single else 0)
         self.dtype = np.float32 if single else np.float64
-        self.n = upper_pattern.shape[0]
-        self.nnz = upper_pattern.nnz
-        self._ia = (upper_pattern.indptr + 1).astype(np.int32)
-        self._ja = (upper_pattern.indices + 1).astype(np.int32)
+        self.n = n
+        self.nnz = len(ja)
+        self._ia, self._ja = ia, ja        # the upper triangle by rows, 1-based (_upper_of_lower)
         self.factors = factors
         self.analysed = False
 
@@ -339,6 +338,39 @@ REGULARIZATION_SINGLE = 1e-6
 REFINE_RTOL, REFINE_MAX = 1e-12, 10
 
 
+@nb.njit(cache=True)
+def _upper_of_lower(indptr, indices, n):
+    """The upper triangle by rows (PARDISO's input: 1-based int32 row
+    pointers ia and columns ja) of a symmetric matrix given by its lower
+    triangle in CSR, the position in the lower data of each upper entry, and
+    of each diagonal entry (-1: missing).  A counting sort by column: the
+    rows are visited in order, so each upper row comes out sorted.  (SciPy's
+    transpose and conversion took 8 s, with their float and index copies, on
+    the 100k leaf's 26.5M entries.)"""
+    nnz = indptr[n]
+    start = np.zeros(n + 1, np.int64)
+    for k in range(nnz):
+        start[indices[k] + 1] += 1
+    for j in range(n):
+        start[j + 1] += start[j]
+    ia = np.empty(n + 1, np.int32)
+    for j in range(n + 1):
+        ia[j] = start[j] + 1
+    ja = np.empty(nnz, np.int32)
+    to_upper = np.empty(nnz, np.int64)
+    diag = np.full(n, -1, np.int64)
+    for i in range(n):
+        for k in range(indptr[i], indptr[i + 1]):
+            j = indices[k]
+            p = start[j]
+            start[j] = p + 1
+            ja[p] = i + 1
+            to_upper[p] = k
+            if j == i:
+                diag[i] = k
+    return ia, ja, to_upper, diag
+
+
 class DirectSolver:
     """Sparse LDL^T factorizations of the Hessians of one sparsity pattern.
 
@@ -364,30 +396,26 @@ class DirectSolver:
         self.regularize = regularize
         self.single = single
         self.n = n
-        self._lower = sp.csr_matrix((np.zeros(len(indices)), indices, indptr), shape=(n, n))
+        # PARDISO takes the upper triangle by rows = the lower triangle by
+        # columns: one fixed permutation of the entries, found once
+        ia, ja, self._to_upper, self._diag = _upper_of_lower(np.asarray(indptr), np.asarray(indices), n)
+        missing = np.flatnonzero(self._diag < 0)
+        if len(missing):
+            raise LinearSolverError(f"the Hessian pattern lacks the diagonal entry of {len(missing)} "
+                                    f"rows (first: row {missing[0]})")
         if method == "pardiso":
-            # PARDISO takes the upper triangle by rows = the lower triangle by
-            # columns: one fixed permutation of the entries, found once
-            probe = sp.csr_matrix((np.arange(len(indices), dtype=np.float64), indices, indptr),
-                                  shape=(n, n)).T.tocsr()
-            probe.sort_indices()
-            self._to_upper = probe.data.astype(np.int64)
             # both slots are factors of one handle (one analysis); single
             # precision: a third slot, a double-precision handle of its own,
             # for the inertia where it decides (factorize(exact_inertia=True);
             # analysed at its first use)
-            shared = _PardisoHandle(probe, 2, single)
+            shared = _PardisoHandle(n, ia, ja, 2, single)
             self._slots = ([_PardisoFactor(shared, 1), _PardisoFactor(shared, 2)]
-                           + ([_PardisoFactor(_PardisoHandle(probe, 1), 1)] if single else []))
+                           + ([_PardisoFactor(_PardisoHandle(n, ia, ja, 1), 1)] if single else []))
         else:
             self._slots = [_SuperLUFactor(), _SuperLUFactor()]
         self._current = None      # slot of the current Hessian
         self._pd = None           # slot of the last positive definite Hessian
         self.K = None
-        rows = np.repeat(np.arange(n), np.diff(indptr))
-        self._diag = np.where(rows == indices)[0]
-        if len(self._diag) != n:
-            raise LinearSolverError("the Hessian pattern lacks diagonal entries")
 
     def factorize(self, K, exact_inertia=False):
         """Numeric factorization of K (lower CSR, this pattern).  Returns the
