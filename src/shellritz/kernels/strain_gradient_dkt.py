@@ -43,6 +43,7 @@ from ..discretize.dkt import element_chart, gather_element, point_map
 from . import KERNEL
 from .parallel import run_chunks
 from .assembly import add_block, scatter_element, zero_element
+from .small import fma
 
 NP1 = 9           # blocks P0 (3) and P1 (6): first covariant derivatives
 NP2 = 18          # and P2 (9): second
@@ -458,7 +459,7 @@ def _component_gradients(ncomp, nblock, wk):
         for k in range(9):
             bu, bv = Bas[iu, k], Bas[iv, k]
             for j in range(3):
-                dP[idx, 3 * k + j] += bu * V[iv, j] + bv * V[iu, j]
+                dP[idx, 3 * k + j] += fma(bu, V[iv, j], bv * V[iu, j])
     for t in range(ncomp):
         Dt = D[t]
         for kj in range(27):
@@ -468,7 +469,7 @@ def _component_gradients(ncomp, nblock, wk):
             if c != 0.0:
                 dPp = dP[p]
                 for kj in range(27):
-                    Dt[kj] += c * dPp[kj]
+                    Dt[kj] = fma(c, dPp[kj], Dt[kj])
 
 
 @njit(**KERNEL)
@@ -491,13 +492,13 @@ def _weighted_M(nbasis, wk):
         for l in range(9):
             s = 0.0
             for v in range(nbasis):
-                s += Wt[u, v] * Bas[v, l]
+                s = fma(Wt[u, v], Bas[v, l], s)
             T[u, l] = s
     for k in range(9):
         for l in range(k, 9):
             s = 0.0
             for u in range(nbasis):
-                s += Bas[u, k] * T[u, l]
+                s = fma(Bas[u, k], T[u, l], s)
             Mw[k, l] = s
             Mw[l, k] = s
 
@@ -536,7 +537,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
         for t in range(N_T):
             s = 0.0
             for q in range(16):
-                s += F[t, q] * s2[q]
+                s = fma(F[t, q], s2[q], s)
             val[t] = 0.5 * s
         w = C * wts[iq] * area
         for t in range(N_T):
@@ -547,7 +548,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
         for q in range(16):
             s = 0.0
             for t in range(N_T):
-                s += val[t] * F[t, q]
+                s = fma(val[t], F[t, q], s)
             wq[q] = s
         for p in range(NP2):
             om[p] = 0.0
@@ -575,7 +576,7 @@ def element_strain_gradient(e, mode, C, tri, X, T, U, G0n, bary, wts, ge, ke, wk
                 if a != 0.0:
                     Dt = D[t]
                     for q in range(p, 27):
-                        kep[q] += a * Dt[q]
+                        kep[q] = fma(a, Dt[q], kep[q])
         for kp in range(9):
             for kq in range(kp, 9):
                 m = 4.0 * w * wk[40][kp, kq]
@@ -706,7 +707,7 @@ def edge_strain_gradient(j, mode, C, tri, X, T, U, G0n, edge_tri, edge_lam, edge
             for P2 in range(P1 + 1):
                 acc = 0.0
                 for t in range(8):
-                    acc += Dn[t, P1] * Dn[t, P2]
+                    acc = fma(Dn[t, P1], Dn[t, P2], acc)
                 Hn[P1, P2] += 2.0 * w * acc
         for s1 in range(2):
             sg1 = 1.0 if s1 == 0 else -1.0
