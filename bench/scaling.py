@@ -31,7 +31,9 @@ solve_in_assemblies.
 Writes bench/results/scaling.json (rows: n_triangles, dofs, solver, thickness, wall_s,
 assembly_s, solve_in_assemblies, peak_mem_gb, newton_its, krylov_its,
 krylov_per_newton, factorizations, nested_levels, energy, grad_rel (final |g| over
-that of the flat disc at t = 1), stable, converged, error; for the AMG methods
+that of the flat disc at t = 1), stable, converged, error, user_s / system_s /
+minor_faults (the timed span's CPU time, the kernel's apart, and page faults:
+machine.memory_info); for the AMG methods
 also amg_cg_1e8_its: CG iterations to a relative residual of 1e-8 on the
 Hessian at the solution with a hierarchy built on it, the measure of the
 preconditioner apart from the Newton forcing terms, with amg_levels,
@@ -126,7 +128,7 @@ shell = leaf_h(rings)
 row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solver, thickness=thickness,
            kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s, nested_levels=[],
            **({} if path is None else {"thickness_path": path}))
-t = time.perf_counter()
+t, usage = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF)
 try:
     start = None
     if solver.endswith("-coarsened"):
@@ -157,6 +159,11 @@ except SolveError as exc:
     if shell is None:                     # solve_nested failed: time the assembly on a fresh leaf
         shell = leaf_h(rings)
 row["wall_s"] = time.perf_counter() - t
+# CPU time of the timed span, the kernel's apart (page faults: on a VM whose
+# balloon reports free pages, about 3 s per GB first touched; machine.memory)
+end = resource.getrusage(resource.RUSAGE_SELF)
+row.update(user_s=end.ru_utime - usage.ru_utime, system_s=end.ru_stime - usage.ru_stime,
+           minor_faults=end.ru_minflt - usage.ru_minflt)
 x = shell.free_state()
 times = []
 for _ in range(3):

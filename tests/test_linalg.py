@@ -773,3 +773,22 @@ def test_upper_pattern_is_the_transpose_of_the_lower_one():
     M.eliminate_zeros()
     with pytest.raises(LinearSolverError, match="lacks the diagonal entry of 1 rows .first: row 17"):
         DirectSolver("superlu", n, M.indptr, M.indices)
+
+
+def test_pardiso_values_are_the_shifted_upper_triangle():
+    """The values handed to PARDISO (``_shifted_upper``, in place) are those
+    of the upper triangle by rows of L + shift I, in double and, rounded
+    once from the shifted double value, in single precision."""
+    from shellritz.linalg import _shifted_upper, _upper_of_lower
+    n = 200
+    A = sp.random(n, n, density=0.05, random_state=3, format="csr")
+    L = sp.tril(A + A.T + sp.eye(n), format="csr")
+    L.sort_indices()
+    ia, ja, to_upper, _ = _upper_of_lower(L.indptr, L.indices, n)
+    shift = 0.3183098861837907
+    U = (L + shift * sp.eye(n)).T.tocsr()
+    U.sort_indices()
+    for dtype in (np.float64, np.float32):
+        out = np.full(L.nnz, np.nan, dtype)
+        _shifted_upper(L.data, to_upper, ia, shift, out)
+        assert np.array_equal(out, U.data.astype(dtype))

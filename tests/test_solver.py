@@ -109,25 +109,43 @@ def test_parameter_derivative_is_exact_for_nodal_loads_and_numerical_otherwise()
         assert shell.parameter_derivative(shell.free_state(), 0.4) is None
 
 
-def test_predictor_takes_the_tangent_alone_after_a_bifurcation():
+def test_predictor_takes_the_tangent_alone_after_a_bifurcation(tmp_path):
     """The leaf in four load steps buckles within the first: the cubic
     through the flat start and the buckled state at t = 0.25 (its trapezoid
     defect 0.62, SMOOTH_DEFECT 0.1) led into a saddle and a failed step (76
     Newton iterations); the next step starts from the tangent alone, the
-    later ones from the cubic again: 39 Newton iterations against 44 from
-    the secant (33 against 39 on a machine of other round-off), no failed
-    step, the same stable equilibrium.  (On this machine the first step had
-    been cut six times, to dt = 1/256, by the slow-Newton test judging the
-    run by its last |g|, 77-fold down, where it had been 156-fold down two
-    steps before: now the run's lowest |g| counts, solve.SLOW_NEWTON.)"""
-    runs = {p: leaf(6).solve(steps=4, verbose=False, predictor=p) for p in ("tangent", "secant")}
-    h = runs["tangent"].history
-    assert h.predictors == ["current state", "tangent", "Hermite", "Hermite"]
-    assert runs["secant"].history.predictors == ["current state", "secant", "secant", "secant"]
-    assert all(ok for _, ok in h.steps)
-    assert len(h.iterations) < len(runs["secant"].history.iterations)
-    assert runs["tangent"].energy == pytest.approx(runs["secant"].energy, rel=1e-10)
-    assert h.stable and runs["secant"].history.stable
+    later ones from the cubic again, no failed step, the same stable
+    equilibrium as from the secant.  Which of the two takes fewer Newton
+    iterations on one leaf is decided by round-off there (on the 6-ring leaf
+    with the growth coefficient 0.3 changed by 0, 1e-12, -1e-12, 3e-12 of
+    itself: tangent 47 / 39 / 40 / 38, secant 43 / 44 / 44 / 39; 38 / 37 / 38
+    / 38 against 42 / 42 / 44 / 44 with SciPy's sparse products in place of
+    linalg.lower_matvec; 33 against 39 on the unchanged leaf on a machine of
+    other round-off), so the four leaves are counted together: 164 against
+    170.  (On this machine the first step had been cut six times, to dt =
+    1/256, by the slow-Newton test judging the run by its last |g|, 77-fold
+    down, where it had been 156-fold down two steps before: now the run's
+    lowest |g| counts, solve.SLOW_NEWTON.)"""
+    from importlib.resources import files
+    from shellritz.meshdata import Surface
+    from shellritz.scenefile import load_scene
+    text = (files("shellritz.meshes") / "leaf.toml").read_text()
+    total = {"tangent": 0, "secant": 0}
+    for coefficient in ("0.3", "0.3000000000003", "0.2999999999997", "0.3000000000009"):
+        path = tmp_path / f"leaf_{coefficient}.toml"
+        path.write_text(text.replace("0.3*", coefficient + "*"))
+        scene = load_scene(path)
+        runs = {p: scene.build(Surface(shapes.disc(6)))[0].solve(steps=4, verbose=False, predictor=p)
+                for p in ("tangent", "secant")}
+        h = runs["tangent"].history
+        assert h.predictors == ["current state", "tangent", "Hermite", "Hermite"]
+        assert runs["secant"].history.predictors == ["current state", "secant", "secant", "secant"]
+        assert all(ok for _, ok in h.steps)
+        assert runs["tangent"].energy == pytest.approx(runs["secant"].energy, rel=1e-10)
+        assert h.stable and runs["secant"].history.stable
+        for p, r in runs.items():
+            total[p] += len(r.history.iterations)
+    assert total["tangent"] < total["secant"]
 
 
 def test_line_search_reaches_the_same_equilibrium(cantilever_default):
@@ -609,6 +627,38 @@ def test_a_negative_lowest_eigenvalue_by_lobpcg_gets_the_lowest_eigenpairs():
     assert history.lowest_eigenvalues[0] == pytest.approx(w[0], rel=1e-8)
     assert history.factorizations == 1                  # K0's only
     assert np.linalg.norm(full @ mode - w[0] * mode) <= 1e-8 * np.linalg.norm(mode)
+
+
+def test_lobpcg_for_the_sign_alone_stops_once_it_is_decided():
+    """lowest_eigenpairs(until_sign=True), as assess_stability calls it for a
+    Hessian that was not factorized: LOBPCG stops as soon as the lowest Ritz
+    value is farther from zero than its residual, here (a positive definite
+    chain K1 near the factorized K0, lowest eigenvalue 1.5e-3) after 4
+    preconditioner applications instead of 19 to EIGEN_RTOL, and the exact
+    lowest eigenvalue lies within that residual."""
+    import scipy.sparse as sp
+    from shellritz.solve import SolveHistory, SolverOptions, _Linear, lowest_eigenpairs
+    n = 400
+    K0 = sp.diags([np.full(n, 2.0 + 1e-3), np.full(n - 1, -1.0)], [0, -1], format="csr")   # lower triangle
+    K1 = (K0 + sp.diags(1e-3 * np.random.default_rng(1).random(n), 0)).tocsr()
+    K1.sort_indices()
+    lin = _Linear(object(), SolverOptions(verbose=False, reuse_factorization="always"), SolveHistory())
+    assert lin.factorize(K0)[0] == 0
+    factor, applications = lin.preconditioner, []
+
+    def counted(K):
+        apply = factor(K)
+        return lambda r: applications.append(1) or apply(r)
+
+    lin.preconditioner = counted
+    exact = np.linalg.eigvalsh((K1 + sp.tril(K1, -1).T).toarray())[0]
+    w, _, res = lowest_eigenpairs(lin, K1, 1)
+    full = len(applications)
+    assert abs(w[0] - exact) <= res[0] <= 1e-10
+    applications.clear()
+    w, _, res = lowest_eigenpairs(lin, K1, 1, until_sign=True)
+    assert 0 < res[0] < w[0] and abs(w[0] - exact) <= res[0]
+    assert len(applications) <= full // 2
 
 
 class _Quartic:

@@ -268,9 +268,11 @@ class _PardisoFactor:
         self.negative = None
         self.perturbed = 0
 
-    def factorize(self, data):
+    def factorize(self, lower, to_upper, shift):
+        """Factorize the matrix with lower-triangle values ``lower`` (its
+        upper ones: ``lower[to_upper]``) plus ``shift`` on the diagonal."""
         h = self.handle
-        self._data[:] = data
+        _shifted_upper(lower, to_upper, h._ia, shift, self._data)
         zero = np.zeros((h.n, 1), h.dtype)
         try:
             if not h.analysed:
@@ -371,6 +373,22 @@ def _upper_of_lower(indptr, indices, n):
     return ia, ja, to_upper, diag
 
 
+@nb.njit(cache=True)
+def _shifted_upper(lower, to_upper, ia, shift, out):
+    """PARDISO's values, written into ``out`` (its dtype): the upper
+    triangle by rows, ``lower[to_upper]``, with ``shift`` added to the
+    diagonal, the first entry of each upper row (1-based row pointers ia).
+    In place: on the 100k leaf the gather and the shifted copy were three
+    arrays of 212 MB per factorization, whose first touch alone took 2-4 s
+    on a VM where NumPy's huge-page requests stall (README, Scaling)."""
+    for p in range(len(to_upper)):
+        out[p] = lower[to_upper[p]]
+    if shift != 0.0:
+        for j in range(len(ia) - 1):
+            d = ia[j] - 1
+            out[d] = lower[to_upper[d]] + shift     # rounded once, also into float32
+
+
 class DirectSolver:
     """Sparse LDL^T factorizations of the Hessians of one sparsity pattern.
 
@@ -426,10 +444,15 @@ class DirectSolver:
         self.K = K
         slot = 2 if self.single and exact_inertia else [i for i in (0, 1) if i != self._pd][0]
         f = self._slots[slot]
-        data = self._regularized(K, REGULARIZATION_SINGLE if self._single(slot) else REGULARIZATION)
+        shift = 0.0
+        if self.regularize:
+            relative = REGULARIZATION_SINGLE if self._single(slot) else REGULARIZATION
+            shift = relative * np.abs(K.data[self._diag]).max(initial=0.0)
         if self.name == "pardiso":
-            f.factorize(data[self._to_upper])
+            f.factorize(K.data, self._to_upper, shift)
         else:
+            data = K.data.copy()
+            data[self._diag] += shift
             Kr = sp.csr_matrix((data, K.indices, K.indptr), shape=K.shape)
             f.factorize(symmetric_from_lower(Kr).tocsc())
         self._current = slot
@@ -440,13 +463,6 @@ class DirectSolver:
     def _single(self, slot):
         """The factor in ``slot`` is single precision (slot 2 is the double one)."""
         return self.single and slot != 2
-
-    def _regularized(self, K, shift):
-        if not self.regularize:
-            return K.data
-        data = K.data.copy()
-        data[self._diag] += shift * np.abs(data[self._diag]).max(initial=0.0)
-        return data
 
     def solve(self, b):
         """K^-1 b with the current (possibly indefinite) factorization,
@@ -1269,12 +1285,73 @@ def jacobi(K):
     return lambda r: (inv * r.T).T
 
 
+# row blocks of the symmetric product from the lower triangle (lower_matvec),
+# each summed into an output of its own: the result is the same on any
+# number of threads
+MATVEC_PARTS = 4
+
+
+@nb.njit(cache=True, nogil=True)
+def _lower_product_parts(lo, hi, bounds, lowest, indptr, indices, data, p, parts):
+    """For the row blocks c = lo .. hi - 1: parts[c] = (L_c + L_c^T - D_c) p
+    for the rows bounds[c] .. bounds[c + 1] - 1 of the lower triangle L (CSR,
+    columns sorted); only the rows lowest[c] .. bounds[c + 1] - 1 of parts[c]
+    are written."""
+    k = p.shape[1]
+    for c in range(lo, hi):
+        y = parts[c]
+        for i in range(lowest[c], bounds[c + 1]):
+            for m in range(k):
+                y[i, m] = 0.0
+        for i in range(bounds[c], bounds[c + 1]):
+            if k == 1:                  # a vector (CG): row sum in a register
+                row, pi = 0.0, p[i, 0]
+                for q in range(indptr[i], indptr[i + 1]):
+                    j = indices[q]
+                    a = data[q]
+                    row += a * p[j, 0]
+                    if j != i:
+                        y[j, 0] += a * pi
+                y[i, 0] += row
+                continue
+            for q in range(indptr[i], indptr[i + 1]):
+                j = indices[q]
+                a = data[q]
+                for m in range(k):
+                    y[i, m] += a * p[j, m]
+                if j != i:
+                    for m in range(k):
+                        y[j, m] += a * p[i, m]
+
+
 def lower_matvec(K):
-    """p -> K p for the symmetric K given by its lower triangle (CSR); p may
-    be a block of vectors (n, k)."""
-    KT = K.T                   # a CSC view, no copy
-    diag = K.diagonal()
-    return lambda p: K @ p + KT @ p - (diag * p.T).T
+    """p -> K p for the symmetric K given by its lower triangle (CSR,
+    columns sorted); p may be a block of vectors (n, k).  One pass over K
+    on the Numba threads (SciPy's K @ p + K.T @ p - D p: three, on one
+    thread; 0.18 s for 3 vectors on the 100k leaf's 26.5M entries)."""
+    n = K.shape[0]
+    indptr, indices, data = K.indptr, K.indices, K.data
+    rows = min(MATVEC_PARTS, max(n, 1))
+    bounds = np.searchsorted(indptr, np.linspace(0, indptr[-1], rows + 1), side="left").astype(np.int64)
+    bounds[0], bounds[-1] = 0, n
+    bounds = np.maximum.accumulate(bounds)
+    # the lowest column of each block: the first of each row (sorted)
+    lowest = np.array([indices[indptr[bounds[c]]:indptr[bounds[c + 1]]].min(initial=bounds[c])
+                       for c in range(rows)], dtype=np.int64)
+    parts = {}
+
+    def product(p):
+        P = np.ascontiguousarray(p, dtype=np.float64).reshape(n, -1)
+        k = P.shape[1]
+        if k not in parts:
+            parts[k] = np.empty((rows, n, k))
+        out = parts[k]
+        run_chunks(_lower_product_parts, 0, rows, bounds, lowest, indptr, indices, data, P, out)
+        y = np.zeros((n, k))
+        for c in range(rows):
+            y[lowest[c]:bounds[c + 1]] += out[c, lowest[c]:bounds[c + 1]]
+        return y.reshape(p.shape)
+    return product
 
 
 def free_rigid_modes(layout):
