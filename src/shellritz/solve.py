@@ -844,9 +844,9 @@ EIGEN_RTOL = 1e-12
 # on from its current block (a restart: SciPy's LOBPCG has no callback) to
 # the residual SIGN_MARGIN |w| (not below EIGEN_RTOL), repeated with the new
 # estimate while the sign stays open.  The 100k leaf (w = 4.0e-11, max |diag|
-# 0.25): 4 + 3 instead of 9 preconditioner applications (PARDISO solves of 3
-# vectors, 0.65 s each).  Looks after every iteration (restarts) stalled: on
-# the 16-ring leaf the residual stayed at 2.6e-7, 60 times w.
+# 0.25), blocks of 3 vectors: 4 + 3 instead of 9 preconditioner applications
+# to EIGEN_RTOL.  Looks after every iteration (restarts) stalled: on the
+# 16-ring leaf the residual stayed at 2.6e-7, 60 times w.
 SIGN_BURST = 3
 SIGN_MARGIN = 0.25
 EIGEN_MAXITER = 200
@@ -870,7 +870,11 @@ def lowest_eigenpairs(lin, K, count, until_sign=False):
         return prec(r)
     M = spla.LinearOperator((n, n), matvec=apply, matmat=apply, dtype=np.float64)
     rng = np.random.default_rng(0)
-    X = rng.standard_normal((n, count + 2))
+    # two vectors beyond those wanted (a lowest eigenvalue in a cluster
+    # converges faster), none for the sign alone: PARDISO solves 3 vectors in
+    # 0.65 s, one in 0.26 s on the 100k leaf, whose sign took 4 + 8 solves of
+    # one (4.3 s) against 4 + 3 of three (8.0 s; of two, 4 + 7: 9.5 s)
+    X = rng.standard_normal((n, count if until_sign else count + 2))
     # the free rigid motions (zero eigenvalues) are excluded
     floor = EIGEN_RTOL * max(np.abs(K.diagonal()).max(), 1e-300)
     tol, maxiter, done = floor, (SIGN_BURST if until_sign else EIGEN_MAXITER), 0
