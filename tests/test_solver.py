@@ -116,13 +116,13 @@ def test_predictor_takes_the_tangent_alone_after_a_bifurcation(tmp_path):
     Newton iterations); the next step starts from the tangent alone, the
     later ones from the cubic again, no failed step, the same stable
     equilibrium as from the secant.  Which of the two takes fewer Newton
-    iterations on one leaf is decided by round-off there (on the 6-ring leaf
-    with the growth coefficient 0.3 changed by 0, 1e-12, -1e-12, 3e-12 of
-    itself: tangent 47 / 39 / 40 / 38, secant 43 / 44 / 44 / 39; 38 / 37 / 38
-    / 38 against 42 / 42 / 44 / 44 with SciPy's sparse products in place of
-    linalg.lower_matvec; 33 against 39 on the unchanged leaf on a machine of
-    other round-off), so the four leaves are counted together: 164 against
-    170.  (On this machine the first step had been cut six times, to dt =
+    iterations on one leaf can be decided by round-off there, so four leaves
+    are counted together: the 6-ring leaf with the growth coefficient 0.3
+    changed by 0, 1e-12, -1e-12, 3e-12 of itself, tangent 38 / 37 / 38 / 38
+    against secant 42 / 42 / 44 / 44 Newton iterations, 151 against 172 (a
+    Hessian product of other round-off, tried: 47 / 39 / 40 / 38 against
+    43 / 44 / 44 / 39, 164 against 170; the unchanged leaf on a machine of
+    other round-off 33 against 39).  (On this machine the first step had been cut six times, to dt =
     1/256, by the slow-Newton test judging the run by its last |g|, 77-fold
     down, where it had been 156-fold down two steps before: now the run's
     lowest |g| counts, solve.SLOW_NEWTON.)"""
