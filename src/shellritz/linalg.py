@@ -380,7 +380,7 @@ def _shifted_upper(lower, to_upper, ia, shift, out):
     diagonal, the first entry of each upper row (1-based row pointers ia).
     In place: on the 100k leaf the gather and the shifted copy were three
     arrays of 212 MB per factorization, whose first touch alone took 2-4 s
-    on a VM where NumPy's huge-page requests stall (README, Scaling)."""
+    on a VM that hands freed memory back to its host (README, Scaling)."""
     for p in range(len(to_upper)):
         out[p] = lower[to_upper[p]]
     if shift != 0.0:
