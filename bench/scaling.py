@@ -8,7 +8,7 @@ continuation step, with every linear method where it fits: "pardiso",
 iteration (the leaf solved on coarser discs first, each level starting from
 the previous equilibrium, Shell.solve(start=...), with linear="auto" as a
 user would: PARDISO below AUTO_DIRECT_MAX_DOFS, and to the tolerance
-solve_nested gives coarse levels, nested.COARSE_RTOL, since 2026-12-06; all levels inside the
+solve_nested gives coarse levels, nested.coarse_rtol, since 2026-12-06; all levels inside the
 timed span, their Newton iterations and factorizations in nested_levels;
 newton_its, krylov_its and factorizations are those of the finest level),
 "amg-nested": the same with AMG on the finest level (the method for
@@ -104,7 +104,7 @@ import numpy as np
 from shellritz.batch import prepare_kernels
 from shellritz.scenes import leaf
 from shellritz import SolveError
-from shellritz.nested import COARSE_RTOL
+from shellritz.nested import coarse_rtol
 rings, solver, rtol = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
 coarser = [int(k) for k in sys.argv[4].split(",") if k]
 thickness = float(sys.argv[5])
@@ -146,7 +146,7 @@ try:
         row["nested_levels"] = res.history.nested
     for k in coarser:        # nested iteration: each level starts from the previous one
         tk = time.perf_counter()    # (coarse levels to the tolerance solve_nested gives them)
-        start = leaf_h(k).solve(verbose=False, linear="auto", rtol=max(rtol, COARSE_RTOL), start=start,
+        start = leaf_h(k).solve(verbose=False, linear="auto", rtol=coarse_rtol(rtol), start=start,
                                 **(first if start is None else {}))
         row["nested_levels"].append(dict(rings=k, n_triangles=int(len(start.shell.mesh.triangles)),
                                          wall_s=time.perf_counter() - tk,

@@ -48,6 +48,14 @@ FACTOR = 4              # triangles per level
 COARSE_RTOL = 1e-6
 
 
+def coarse_rtol(rtol):
+    """The relative tolerance of a coarse level where the given mesh's is
+    rtol (a value that is not a number is left to Shell.solve to refuse)."""
+    if isinstance(rtol, (int, float)) and not isinstance(rtol, bool):
+        return max(rtol, COARSE_RTOL)
+    return rtol
+
+
 def _gpytoolbox():
     try:
         with warnings.catch_warnings():       # its modules import deprecated NumPy/SciPy names
@@ -205,9 +213,7 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
         raise TypeError(f"solve_nested: mesh must be a shellritz.Mesh, not {type(mesh).__name__}")
     first = {"thickness_path": options.pop("thickness_path")} if "thickness_path" in options else {}
     coarse_options = {k: v for k, v in options.items() if k != "linear"}
-    rtol = options.get("rtol", SolverOptions.rtol)
-    if isinstance(rtol, (int, float)) and not isinstance(rtol, bool):   # else Shell.solve says what is wrong
-        coarse_options["rtol"] = max(rtol, COARSE_RTOL)
+    coarse_options["rtol"] = coarse_rtol(options.get("rtol", SolverOptions.rtol))
     start, record = None, []
     for n in levels(mesh, coarsest, factor):
         t0 = time.perf_counter()
