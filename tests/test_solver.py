@@ -788,6 +788,26 @@ def test_trust_region_steps_stay_within_the_radius():
     assert history.stable
 
 
+def test_steps_on_the_way_that_stagnate_near_an_equilibrium_are_kept():
+    """Past secondary bifurcations the grown discs' equilibria are nearly
+    singular: Newton creeps with |g| of 1e-8 .. 1e-9 against a tolerance of
+    1.6e-11, the step was cut to min_dt and the solve failed (this disc at
+    t = 0.95; bench/disc_robustness.py: 50 of 60 discs stable).  A step on
+    the way to t = 1 whose Newton iteration stagnates below
+    solve.ON_THE_WAY_RTOL times the step's force scale is kept, with a note;
+    the end of the path is held to the tolerance.  Observed: stable, 235
+    Newton iterations, 8 states kept (the first at t = 0.25, |g| 2.1e-8),
+    final |g| 1.0e-11 (56 of 60 discs stable)."""
+    s = _free_grown_disc(False, rings=4)
+    s.clamp(s.mesh.nodes_where(lambda X: X[:, 0] ** 2 + X[:, 1] ** 2 < 1e-12))
+    result = s.solve(steps=4, verbose=False)
+    assert result.history.stable
+    kept = [n for n in result.history.notes if "kept on the way" in n]
+    assert kept
+    assert all(float(n.split(":")[0][2:]) < 1.0 for n in kept)
+    assert np.linalg.norm(s.evaluate(s.free_state(), 1)[1]) < 1e-10
+
+
 def test_cut_load_steps_keep_the_tolerance_of_the_first_step(monkeypatch):
     """A load step retried with a smaller dt keeps the force scale of the
     first step (the tolerance is rtol times it): relative to dt |dg/dt| it
@@ -795,15 +815,17 @@ def test_cut_load_steps_keep_the_tolerance_of_the_first_step(monkeypatch):
     the free 4-ring disc failed at t = 0.937.  Which disc cuts how far,
     round-off decides; the free 5-ring disc with max_iter = 8 cuts its steps
     (8-10 times, to dt = 1/512, in both arithmetics tried: IEEE order and
-    the reassociating build of branch fastmath-kernels), and every
-    retry from one point with dt up to the first step's must be held to the
-    same force scale (under the old rule: halved with each cut)."""
+    the reassociating build of branch fastmath-kernels; since steps on the
+    way that stagnate near |g| = 0 are kept, solve.ON_THE_WAY_RTOL, three
+    times from one point), and every retry from one point with dt up to the
+    first step's must be held to the same force scale (under the old rule:
+    halved with each cut)."""
     import shellritz.solve as solve_module
     calls = []
     real = solve_module.equilibrium
 
-    def spy(problem, t, opts, history, g_ref, lin, may_cut=False):
-        ok = real(problem, t, opts, history, g_ref, lin, may_cut)
+    def spy(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
+        ok = real(problem, t, opts, history, g_ref, lin, may_cut, accept)
         calls.append((t, g_ref, ok))
         return ok
     monkeypatch.setattr(solve_module, "equilibrium", spy)
@@ -819,7 +841,7 @@ def test_cut_load_steps_keep_the_tolerance_of_the_first_step(monkeypatch):
     for start, g_ref in retries:
         by_start.setdefault(start, []).append(g_ref)
     cut = [v for v in by_start.values() if len(v) > 1]
-    assert len(cut) >= 2
+    assert sum(len(v) - 1 for v in cut) >= 3            # cuts observed: 3 (from one point)
     for scales in cut:
         assert max(scales) == pytest.approx(min(scales), rel=1e-12)
 

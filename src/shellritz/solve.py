@@ -362,6 +362,16 @@ CONVERGING_DROP = 0.1
 # on the state; their inertia differs only if an eigenvalue of K is within
 # the change of K over that step of zero (a critical point to round-off)
 CONVERGED_MARGIN = 0.1
+# a load step on the way to t = 1 whose Newton iteration stagnates (max_iter,
+# stalled, or SLOW_NEWTON) with |g| below this fraction of the step's force
+# scale is kept, with a note: past secondary bifurcations the grown discs'
+# equilibria are nearly singular, Newton creeps at |g| of 1e-8 .. 1e-9
+# (relative 1e-6 .. 1e-7) where the tolerance asks 1e-9, and cutting the step
+# only lands on the same near-singular states until dt < min_dt (the 4-ring
+# discs failed at t = 0.95-0.99).  Such a state is only the start of the next
+# step; the path's end is held to the tolerance.  bench/disc_robustness.py:
+# 50 -> 56 of 60 discs stable (2026-12-06).
+ON_THE_WAY_RTOL = 1e-5
 # a failed load path gets the hint of a limit point (_limit_point_hint) where
 # the tangent at its last equilibrium would move the shell by more than this
 # many times its size over the rest of the parameter (measured: a sphere
@@ -404,7 +414,7 @@ def _uses_trust_region(opts, solver):
     return solver.direct or solver.one_level
 
 
-def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
+def minimize(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
     """Newton iterations at fixed t from the current state.  Returns
     (K, inertia) at the equilibrium reached, or None on failure: K the
     Hessian (lower CSR), inertia the number of its negative eigenvalues
@@ -462,6 +472,18 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
     reused = False              # this step is solved with the previous factorization
     inertia = None              # negative pivots of a double-precision factorization of K
     done = lambda: (K, inertia if factorized else None)
+
+    def on_the_way():
+        """Whether a step on the way to the path's end that Newton cannot
+        finish is kept (``accept``, module constant ON_THE_WAY_RTOL)."""
+        if accept is None or watch is not None or gnorm > accept:
+            return False
+        history.notes.append(f"t={t:.4g}: Newton stagnates at |g| {gnorm:.3e} (tolerance {tol:.3e}: "
+                             f"a nearly singular equilibrium); kept on the way (|g| <= {accept:.3e})")
+        if opts.verbose:
+            print(f"    t={t:.4f}: Newton stagnates at |g| {gnorm:.3e}: kept on the way "
+                  f"(|g| <= {accept:.3e})")
+        return True
     for it in range(2 * opts.max_iter + 1):
         t0 = time.perf_counter()
         if gnorm <= tol or last_step <= opts.xtol * size:
@@ -487,6 +509,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
         if ((it >= opts.max_iter and watch is None and not (converging or descending))
                 or it == 2 * opts.max_iter
                 or stalled):
+            if on_the_way():
+                return done()
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton stagnates (|g| {gnorm:.3e} after {it} iterations, "
                       f"tolerance {tol:.3e})")
@@ -506,6 +530,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False):
         pd_run, pd_since = (pd_run + 1, pd_since or gnorm) if exact else (0, None)
         pd_best = min(pd_best, gnorm) if exact and pd_run > 1 else gnorm
         if may_cut and pd_run > SLOW_NEWTON and pd_best > 1e-2 * pd_since:
+            if on_the_way():
+                return done()
             if opts.verbose:
                 print(f"    t={t:.4f}: Newton converges slowly on positive definite Hessians "
                       f"(|g| {pd_best:.3e} at best after {SLOW_NEWTON} steps from {pd_since:.3e}): "
@@ -989,10 +1015,10 @@ def escape_along(problem, mode, t, opts, history):
     return False
 
 
-def equilibrium(problem, t, opts, history, g_ref, lin, may_cut=False):
+def equilibrium(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
     """Minimize at t; assess stability; leave unstable states (opts.escape)."""
     for _ in range(opts.max_escapes + 1):
-        found = minimize(problem, t, opts, history, g_ref, lin, may_cut)
+        found = minimize(problem, t, opts, history, g_ref, lin, may_cut, accept)
         if found is None:
             return False
         K, inertia = found
@@ -1121,7 +1147,8 @@ def _follow_path(problem, steps, opts, history, lin, min_dt, t_start, force_scal
         # asked for 1.5e-14 where |g| stalls at about 1e-12, and failed)
         g_step = max(g_ref, problem.load_scale(), max(dt, first_dt) * here.gt_norm)
         try:
-            ok = equilibrium(problem, t_new, opts, history, g_step, lin, may_cut=0.5 * dt >= min_dt)
+            ok = equilibrium(problem, t_new, opts, history, g_step, lin, may_cut=0.5 * dt >= min_dt,
+                             accept=ON_THE_WAY_RTOL * g_step if t_new < 1.0 else None)
         except LinearSolverError as exc:
             problem.restore_point(saved)
             problem.set_parameter(t)
