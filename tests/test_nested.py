@@ -105,6 +105,11 @@ def test_solve_nested_bad_arguments():
         solve_nested(lambda m: None, shapes.disc(40).vertices)
     with pytest.raises(TypeError, match="must return a shellritz.Shell, not NoneType"):
         solve_nested(lambda m: None, shapes.disc(40), verbose=False)
+    # bad solver options: refused before any level is built (build would raise)
+    for bad, match in (({"rtol": -1.0}, "rtol"), ({"linear": "lu"}, "linear"),
+                       ({"steps": 0}, "steps"), ({"tolerance": 1e-8}, "unknown option")):
+        with pytest.raises((TypeError, ValueError), match=match):
+            solve_nested(lambda m: 1 / 0, shapes.disc(40), verbose=False, **bad)
 
 
 def test_turned_triangles_are_an_error(monkeypatch):

@@ -34,7 +34,7 @@ from scipy.spatial import cKDTree
 
 from .mesh import Mesh, MeshError
 from .shell import Shell
-from .solve import SolverOptions
+from .solve import SolverOptions, solver_options
 from .transfer import locate
 
 COARSEST = 1500         # triangles of the coarsest level (the 16-ring leaf: 1,536)
@@ -212,6 +212,8 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
     if not isinstance(mesh, Mesh):
         raise TypeError(f"solve_nested: mesh must be a shellritz.Mesh, not {type(mesh).__name__}")
     first = {"thickness_path": options.pop("thickness_path")} if "thickness_path" in options else {}
+    # bad options are refused before any coarse level is solved, not by the given mesh's solve
+    solver_options(verbose=verbose, **{k: v for k, v in options.items() if k != "monitor"})
     coarse_options = {k: v for k, v in options.items() if k != "linear"}
     coarse_options["rtol"] = coarse_rtol(options.get("rtol", SolverOptions.rtol))
     start, record = None, []
