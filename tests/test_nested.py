@@ -152,6 +152,17 @@ def test_nested_leaf_reaches_the_direct_equilibrium(monkeypatch):
     assert nested.history.stable
 
 
+def test_nested_monitors_the_given_mesh_only():
+    """monitor= names nodes of the given mesh: the coarse levels do not get
+    it (its last node is outside the coarse mesh: a ValueError there before)."""
+    scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+    fine = shapes.disc(12)
+    res = solve_nested(lambda m: scene.build(Surface(m))[0], fine, coarsest=200, verbose=False,
+                       monitor=[fine.n_nodes - 1])
+    assert [lvl["n_triangles"] < 300 for lvl in res.history.nested] == [True]
+    assert res.converged
+
+
 def test_nested_without_coarser_level_is_the_direct_solve():
     scene = load_scene(files("shellritz.meshes") / "leaf.toml")
     fine = shapes.disc(6)

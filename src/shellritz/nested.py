@@ -193,7 +193,8 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
     len(triangles) / factor^k triangles, the coarsest at least ``coarsest``)
     solved coarsest first with ``options`` (those of ``Shell.solve``; the
     coarsest from the reference state, with ``steps`` etc.; the coarse levels
-    to a relative tolerance of at most COARSE_RTOL), each finer level
+    to a relative tolerance of at most COARSE_RTOL; ``monitor``, node indices
+    of the given mesh, on the given mesh only), each finer level
     from the previous equilibrium, the given mesh last.  ``build`` must
     place the scene on any mesh of the surface (boundary conditions and
     loads selected geometrically, growth as functions of the position).
@@ -214,7 +215,8 @@ def solve_nested(build, mesh, coarsest=COARSEST, factor=FACTOR, verbose=True, **
     first = {"thickness_path": options.pop("thickness_path")} if "thickness_path" in options else {}
     # bad options are refused before any coarse level is solved, not by the given mesh's solve
     solver_options(verbose=verbose, **{k: v for k, v in options.items() if k != "monitor"})
-    coarse_options = {k: v for k, v in options.items() if k != "linear"}
+    # the linear solver by size, and the monitored nodes (indices of the given mesh) on it only
+    coarse_options = {k: v for k, v in options.items() if k not in ("linear", "monitor")}
     coarse_options["rtol"] = coarse_rtol(options.get("rtol", SolverOptions.rtol))
     start, record = None, []
     for n in levels(mesh, coarsest, factor):
