@@ -8,8 +8,8 @@ continuation step, with every linear method where it fits: "pardiso",
 iteration (the leaf solved on coarser discs first, each level starting from
 the previous equilibrium, Shell.solve(start=...), with linear="auto" as a
 user would: PARDISO below AUTO_DIRECT_MAX_DOFS, and to the tolerance
-solve_nested gives coarse levels, nested.coarse_rtol, since 2026-12-06; all levels inside the
-timed span, their Newton iterations and factorizations in nested_levels;
+solve_nested gives coarse levels, nested.coarse_rtol, since 2026-12-06; all
+levels inside the timed span, their Newton iterations and factorizations in nested_levels;
 newton_its, krylov_its and factorizations are those of the finest level),
 "amg-nested": the same with AMG on the finest level (the method for
 meshes whose factors do not fit in memory), and "pardiso-coarsened" /

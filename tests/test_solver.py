@@ -122,8 +122,8 @@ def test_predictor_takes_the_tangent_alone_after_a_bifurcation(tmp_path):
     against secant 42 / 42 / 44 / 44 Newton iterations, 151 against 172 (a
     Hessian product of other round-off, tried: 47 / 39 / 40 / 38 against
     43 / 44 / 44 / 39, 164 against 170; the unchanged leaf on a machine of
-    other round-off 33 against 39).  (On this machine the first step had been cut six times, to dt =
-    1/256, by the slow-Newton test judging the run by its last |g|, 77-fold
+    other round-off 33 against 39).  (On this machine the first step had
+    been cut six times, to dt = 1/256, by the slow-Newton test judging the run by its last |g|, 77-fold
     down, where it had been 156-fold down two steps before: now the run's
     lowest |g| counts, solve.SLOW_NEWTON.)"""
     from importlib.resources import files

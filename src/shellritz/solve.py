@@ -332,10 +332,9 @@ def _forcing(opts, exact, gnorm, gnorm_prev, eta_prev):
 TRUST_SHRINK = 0.5
 # a load step whose Newton iterations on positive definite Hessians have not
 # reduced |g| by SLOW_NEWTON_DROP (a hundredfold) after SLOW_NEWTON of them
-# is too large: Newton
-# creeps along a curved valley (a very thin shell's inextensional path) with
-# good but short steps, where a smaller step converges in a few iterations
-# (thin panel h/R = 1e-3: 237 -> 129 Newton iterations, stability map).
+# is too large: Newton creeps along a curved valley (a very thin shell's
+# inextensional path) with good but short steps, where a smaller step
+# converges in a few iterations (thin panel h/R = 1e-3: 237 -> 129 Newton iterations, stability map).
 # The lowest |g| of the run counts: near a nearly singular Hessian |g| goes
 # up and down on the way (the 6-ring leaf's first step, 2026-12-06: 156-fold
 # down at the run's 11th step, 77-fold at its 13th; judged by its last |g|
@@ -372,11 +371,11 @@ CONVERGED_MARGIN = 0.1
 # stalled, or SLOW_NEWTON) is kept, with a note, where its last iterate, or
 # else the lowest-|g| iterate it passed off the watchdog's probation
 # (restored), has |g| below this fraction of the step's force scale: past
-# secondary bifurcations the grown discs'
-# equilibria are nearly singular, Newton creeps at |g| of 1e-8 .. 1e-9
-# (relative 1e-6 .. 1e-7) where the tolerance asks 1e-9, and cutting the step
-# only lands on the same near-singular states until dt < min_dt (the 4-ring
-# discs failed at t = 0.95-0.99).  Such a state is only the start of the next
+# secondary bifurcations the grown discs' equilibria are nearly singular,
+# Newton creeps at |g| of 1e-8 .. 1e-9 (relative 1e-6 .. 1e-7) where the
+# tolerance asks 1e-9, and cutting the step only lands on the same
+# near-singular states until dt < min_dt (the 4-ring discs failed at
+# t = 0.95-0.99).  Such a state is only the start of the next
 # step; the path's end is held to the tolerance.  bench/disc_robustness.py:
 # 50 -> 60 of 60 discs stable (2026-12-06; 56 with the last iterate alone:
 # near t = 0.993 uphill watchdog steps on nearly singular Hessians left the
