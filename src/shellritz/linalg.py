@@ -658,7 +658,7 @@ def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coa
     """The smoothed-aggregation hierarchy of the BSR matrix A (symmetric)
     with near-null space B: pyamg's (``smoothed_aggregation_solver`` with
     symmetric strength ``theta``, standard aggregation, no relaxation of B,
-    Jacobi prolongation smoothing with 'diagonal' weighting ``omega``, block
+    Jacobi prolongation smoothing with 'block' weighting ``omega``, block
     Gauss-Seidel smoothers, coarsening while a level has more than
     ``max_coarse`` blocks and there are fewer than ``max_levels`` levels),
     built from pyamg's parts, with the steps that hold memory done
@@ -748,34 +748,71 @@ def _block_gauss_seidel(indptr, indices, data, dinv, x, b, sweeps):
 
 
 def _smoothed_prolongator(A, T, omega):
-    """P = T - (omega / rho) D^-1 A T, D the diagonal of A (rows where it is
-    not positive are left unsmoothed) and rho the spectral radius of
-    D^-1 A (pyamg's Jacobi prolongation smoother with weighting
-    'diagonal'), written into A T.  Not pyamg's 'local' weighting (rho D
-    replaced by the row sums of |A|, no eigenvalue estimate), which was
-    used until 2026-12-05: its row sums, several times rho D on the DKT
-    Hessians (a plate: median 22 D against rho = 2.3), smooth the
-    prolongator that much less (CG to 1e-8 on the 50k default leaf's
-    Hessian at its solution: 38 -> 27 iterations; README "Scaling")."""
-    d = A.diagonal()
-    dinv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 0.0)
-    rho = _spectral_radius(A, dinv)
+    """P = T - (omega / rho) D^-1 A T, D the block diagonal of A (its nodal
+    blocks; of each block only the part on its positive eigenvalues is
+    inverted, the rest left unsmoothed) and rho the spectral radius of
+    D^-1 A (pyamg's Jacobi prolongation smoother with weighting 'block'),
+    written into A T.  Block, not scalar, Jacobi (pyamg's 'diagonal', used
+    until 2026-12-07): a nodal block holds positions (lengths) and tangent
+    derivatives (numbers) coupled by the membrane and strain-gradient
+    terms, and the scalar diagonal smooths their coupled errors poorly (CG
+    to 1e-8 on the default leaf's Hessian at its solution: 27 -> 13
+    iterations at 50k triangles, 37 -> 22 at 100k; README "Scaling").
+    Before that, until 2026-12-05, pyamg's 'local' weighting (rho D replaced
+    by the row sums of |A|, several times rho D on the DKT Hessians) smoothed
+    it less still (50k: 38 iterations)."""
+    S = _block_inverse_sqrt(A)
+    rho = _spectral_radius(A, S)
     # rho = 0: nothing to smooth with (D^-1 A = 0); P = T
-    scale = -(omega / rho) * dinv if rho > 0 else np.zeros_like(dinv)
+    coef = -omega / rho if rho > 0 else 0.0
     AT = (A @ T).tobsr(blocksize=T.blocksize)
     AT.sort_indices()
     T.sort_indices()
-    _scale_rows_add(scale, AT.indptr, AT.indices, AT.data, T.indptr, T.indices, T.data)
+    _block_rows_add(coef, S, AT.indptr, AT.indices, AT.data, T.indptr, T.indices, T.data)
     return AT
 
 
-def _spectral_radius(A, dinv):
-    """The spectral radius of D^-1 A (dinv: the inverse diagonal, 0 where
-    rows are left out), that of the symmetric D^-1/2 A D^-1/2: ARPACK's
-    Lanczos (scipy eigsh) on it as an operator, to 1e-2 as pyamg (no scaled copy of
-    A: 4 GB for the 1M-triangle leaf)."""
-    s = np.sqrt(dinv)
-    op = spla.LinearOperator(A.shape, matvec=lambda x: s * (A @ (s * x.ravel())), dtype=np.float64)
+def _block_inverse_sqrt(A):
+    """S_i = D_i^-1/2 for each diagonal block D_i of the BSR matrix A
+    (blocks, m, m), on D_i's eigenvalues above 1e-12 of its largest (0 on
+    the others and for a missing block): D^-1 = S S, S D S the identity on
+    the positive part."""
+    m = A.blocksize[0]
+    A.sort_indices()
+    S = np.zeros((A.shape[0] // m, m, m))
+    run_chunks(_block_inverse_sqrt_rows, 0, len(S), A.indptr, A.indices, A.data, S, min_chunk=256)
+    return S
+
+
+@nb.njit(cache=True, nogil=True)
+def _block_inverse_sqrt_rows(lo, hi, indptr, indices, data, S):
+    m = data.shape[1]
+    D = np.empty((m, m))
+    for i in range(lo, hi):
+        k = indptr[i] + np.searchsorted(indices[indptr[i]:indptr[i + 1]], i)
+        if k == indptr[i + 1] or indices[k] != i:
+            continue
+        for a in range(m):
+            for c in range(m):
+                D[a, c] = 0.5 * (data[k, a, c] + data[k, c, a])
+        w, Q = np.linalg.eigh(D)
+        floor = 1e-12 * max(w[-1], 0.0)
+        for j in range(m):
+            if w[j] > floor and w[j] > 0.0:
+                f = 1.0 / np.sqrt(w[j])
+                for a in range(m):
+                    for c in range(m):
+                        S[i, a, c] += f * Q[a, j] * Q[c, j]
+
+
+def _spectral_radius(A, S):
+    """The spectral radius of D^-1 A (S = D^-1/2 by blocks: _block_inverse_sqrt),
+    that of the symmetric S A S: ARPACK's Lanczos (scipy eigsh) on it as an
+    operator, to 1e-2 as pyamg (no scaled copy of A: 4 GB for the
+    1M-triangle leaf)."""
+    m = S.shape[1]
+    Sb = sp.bsr_matrix((S, np.arange(len(S)), np.arange(len(S) + 1)), shape=A.shape, blocksize=(m, m))
+    op = spla.LinearOperator(A.shape, matvec=lambda x: Sb @ (A @ (Sb @ x.ravel())), dtype=np.float64)
     v0 = np.random.default_rng(0).standard_normal(A.shape[0])
     if not op.matvec(v0).any():                   # D^-1 A = 0 (ARPACK refuses it)
         return 0.0
@@ -789,17 +826,29 @@ def _spectral_radius(A, dinv):
 
 
 @nb.njit(cache=True)
-def _scale_rows_add(scale, ptr, idx, data, t_ptr, t_idx, t_data):
-    """data (the BSR A T) <- T + scale * data (scale per scalar row), T's
-    blocks added at their positions in A T's pattern (which holds them: A
-    has its diagonal blocks)."""
-    b = data.shape[1]
+def _block_rows_add(coef, S, ptr, idx, data, t_ptr, t_idx, t_data):
+    """data (the BSR A T) <- T + coef D_i^-1 data by block rows i (D_i^-1 =
+    S_i S_i), T's blocks added at their positions in A T's pattern (which
+    holds them: A has its diagonal blocks)."""
+    m = data.shape[1]
+    Dinv = np.empty((m, m))
+    col = np.empty(m)
     for i in range(len(ptr) - 1):
-        for r in range(b):
-            s = scale[i * b + r]
-            for k in range(ptr[i], ptr[i + 1]):
-                for c in range(data.shape[2]):
-                    data[k, r, c] *= s
+        for a in range(m):
+            for c in range(m):
+                acc = 0.0
+                for j in range(m):
+                    acc += S[i, a, j] * S[i, j, c]
+                Dinv[a, c] = coef * acc
+        for k in range(ptr[i], ptr[i + 1]):
+            for c in range(data.shape[2]):
+                for a in range(m):
+                    col[a] = data[k, a, c]
+                for a in range(m):
+                    acc = 0.0
+                    for j in range(m):
+                        acc += Dinv[a, j] * col[j]
+                    data[k, a, c] = acc
         for kt in range(t_ptr[i], t_ptr[i + 1]):
             k = ptr[i] + np.searchsorted(idx[ptr[i]:ptr[i + 1]], t_idx[kt])
             if k == ptr[i + 1] or idx[k] != t_idx[kt]:
