@@ -17,8 +17,10 @@ Rows: rings, n_triangles, dofs, h, h_over_l, strain_gradient (the term
 on), cg_its, reason, setup_s, cg_s, levels, coarsest_blocks.  The file
 also keeps ``before``: the same measure with the code of commit 539d236
 (2026-12-05: prolongation smoothing weighted by the row sums of |A|),
-copied from that run, and ``before_near_null``: that of commit 64b8d37,
-whose near null space kept candidates that vanish on the planar reference.
+copied from that run, ``before_near_null``: that of commit 64b8d37,
+whose near null space kept candidates that vanish on the planar reference,
+and ``before_diagonal``: that of commit 4a70aae (prolongation smoothing by
+the scalar diagonal instead of the nodal blocks).
 Writes bench/results/amg_thickness_ratio.json (rows of the cases run
 replace those of the same rings and ratio).
 Run:  python bench/amg_thickness_ratio.py [--rings 45 91 129] [--ratios 0.5 1.8 3.6 7.3]
@@ -68,6 +70,14 @@ BEFORE_NEAR_NULL = [dict(rings=45, n_triangles=12150, h_over_l=r, cg_its=i)
                    [dict(rings=91, n_triangles=49686, h_over_l=r, cg_its=i)
                     for r, i in ((0.5, 23), (1.8, 14), (3.6, 48), (7.3, 150))]
 
+# commit 4a70aae (2026-12-05, night, to 2026-12-07): prolongation smoothing
+# by the scalar diagonal (pyamg's 'diagonal' weighting), before the nodal
+# blocks (block Jacobi)
+BEFORE_DIAGONAL = [dict(rings=rings, n_triangles=n, h_over_l=r, cg_its=i)
+                   for rings, n, its in ((45, 12150, (12, 13, 29, 72)), (91, 49686, (12, 14, 32, 82)),
+                                         (129, 99846, (13, 15, 33, 88)))
+                   for r, i in zip((0.5, 1.8, 3.6, 7.3), its)]
+
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -80,7 +90,8 @@ def main():
               "AMG CG iterations to 1e-8 on the leaf's reference stiffness against h/l", CHILD,
               [dict(rings=rings, h_over_l=ratio) for rings in args.rings for ratio in args.ratios],
               extra={"before": {"commit": "539d236", "rows": BEFORE},
-                     "before_near_null": {"commit": "64b8d37", "rows": BEFORE_NEAR_NULL}})
+                     "before_near_null": {"commit": "64b8d37", "rows": BEFORE_NEAR_NULL},
+                     "before_diagonal": {"commit": "4a70aae", "rows": BEFORE_DIAGONAL}})
 
 
 if __name__ == "__main__":
