@@ -308,6 +308,34 @@ def test_a_failed_reuse_still_lets_the_last_newton_step_be_predicted(monkeypatch
     assert always.stable and never.stable
 
 
+def test_krylov_forcing_is_eisenstat_walker_bounded_by_the_tolerance_on_the_gradient():
+    """The relative tolerance of CG in a Newton step (solve._forcing): tight
+    with the current Hessian's factor; else Eisenstat-Walker choice 2,
+    0.9 (|g| / |g_prev|)^2 within [1e-10, 0.1], 0.1 on the first step; with
+    AMG no tighter than leaves the residual at half the tolerance tol on
+    |g| (Kelley 1995, 6.3.2): the 1M default leaf's third Newton step, from
+    |g| 2.1e-8 after 5.5e-6, asked 1.3e-5 of CG (hundreds of W-cycles) and
+    ran out of time; with an earlier Hessian's factor no looser than leaves
+    it at half of CONVERGED_MARGIN x tol, so that the step is the last;
+    an indefinite Hessian preconditioned by an earlier positive definite
+    factor: Eisenstat-Walker alone (the grown discs' paths past secondary
+    bifurcations depend on it: test_steps_on_the_way_...)."""
+    from shellritz.solve import CONVERGED_MARGIN, _forcing
+    assert _forcing(True, False, True, 1e-3, 1e-2, 1e-9) == 1e-10
+    assert _forcing(False, False, True, 1e-3, None, 1e-9) == 0.1
+    assert _forcing(False, False, True, 1e-3, 1e-2, 1e-9) == pytest.approx(9e-3, rel=1e-12)    # far: EW
+    ew = 0.9 * (2.1e-8 / 5.5e-6) ** 2
+    assert _forcing(False, False, True, 2.1e-8, 5.5e-6, 1e-13) == pytest.approx(ew, rel=1e-12)
+    assert _forcing(False, False, True, 2.1e-8, 5.5e-6, 1e-9) == pytest.approx(0.5e-9 / 2.1e-8, rel=1e-12)
+    assert _forcing(False, False, True, 2.1e-8, 5.5e-6, 1e-8) == 0.1                         # capped
+    assert _forcing(False, True, True, 2.1e-8, 5.5e-6, 1e-8) == pytest.approx(ew, rel=1e-12)
+    assert _forcing(False, True, True, 1e-3, 1e-2, 1e-9) == pytest.approx(
+        0.5 * CONVERGED_MARGIN * 1e-9 / 1e-3, rel=1e-12)
+    assert _forcing(False, False, True, 1.0, 1e30, 1e-30) == 1e-10
+    # an indefinite Hessian preconditioned by an earlier factor: EW alone
+    assert _forcing(False, False, False, 2.1e-8, 5.5e-6, 1e-8) == pytest.approx(ew, rel=1e-12)
+
+
 def test_predicted_last_newton_step_saves_a_hessian_per_load_step(monkeypatch):
     """Where quadratic convergence puts |g| after the next full Newton step
     below CONVERGED_MARGIN x the tolerance, that state gets its gradient

@@ -310,19 +310,32 @@ class _Linear:
         return M if M is not None else jacobi(K)
 
 
-def _forcing(opts, exact, gnorm, gnorm_prev, eta_prev):
-    """Relative tolerance of the Krylov solve: tight with the factorization
-    of the current Hessian as preconditioner (an iteration or two anyway),
-    else Eisenstat-Walker choice 2 (gamma 0.9, exponent 2, safeguarded):
-    inexact Newton."""
+def _forcing(exact, reused, amg, gnorm, gnorm_prev, tol):
+    """Relative tolerance eta of the Krylov solve, ||K p + g|| <= eta |g|.
+    With the factorization of the current Hessian as preconditioner: tight
+    (an iteration or two anyway).  Else inexact Newton: Eisenstat-Walker
+    choice 2 (gamma 0.9, exponent 2, at most 0.1), bounded by
+    the tolerance ``tol`` on |g|.  With an earlier Hessian's factorization
+    (``reused``, cheap iterations) no looser than leaves the step's residual
+    half the margin of a predicted last step below tol, so that the step is
+    the last; with AMG (``amg``) no tighter than leaves it at half of tol
+    (Kelley, Iterative Methods for Linear and Nonlinear Equations, 1995,
+    section 6.3.2): the gradient after the step is its residual plus a term
+    quadratic in the step, and a smaller residual does not end the solve
+    sooner (the 1M default leaf's third Newton step, from |g| 2.1e-8, asked
+    1.3e-5 of CG and ran out of time at 9 s a W-cycle).  Not with the
+    factorization of an earlier positive definite Hessian preconditioning
+    an indefinite one: its iterations are cheap, and past secondary
+    bifurcations (grown discs, bench/disc_robustness.py) which equilibrium
+    Newton reaches depends on them."""
     if exact:
         return 1e-10
-    if gnorm_prev is None:
-        return 0.1
-    eta = 0.9 * (gnorm / gnorm_prev) ** 2
-    if 0.9 * eta_prev ** 2 > 0.1:
-        eta = max(eta, 0.9 * eta_prev ** 2)
-    return float(min(max(eta, 1e-10), 0.1))
+    # (the choice's safeguard max(eta, 0.9 eta_prev^2) acts only where
+    # 0.9 eta_prev^2 > 0.1, never below the cap of 0.1)
+    eta = 0.1 if gnorm_prev is None else min(max(0.9 * (gnorm / gnorm_prev) ** 2, 1e-10), 0.1)
+    if reused:
+        return float(max(min(eta, 0.5 * CONVERGED_MARGIN * tol / gnorm), 1e-10))
+    return float(min(max(eta, 0.5 * tol / gnorm), 0.1) if amg else eta)
 
 
 # trust region: a rejected step's radius shrinks to this fraction of the step
@@ -556,12 +569,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
                       "smaller step")
             return None
         matvec = lower_matvec(K)
-        eta = _forcing(opts, exact and not reused, gnorm, gnorm_prev, eta)
-        if reused:
-            # an earlier Hessian's factor: inexact Newton, but no looser
-            # than leaves the residual of the step a fraction of the margin
-            # below the tolerance (the last step may be predicted)
-            eta = max(min(eta, 0.5 * CONVERGED_MARGIN * tol / gnorm), 1e-10)
+        eta = _forcing(exact and not reused, reused, not lin.direct, gnorm, gnorm_prev, tol)
         ts = time.perf_counter()
         if exact:
             r = np.inf             # the Newton step, truncated to the region below
