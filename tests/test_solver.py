@@ -317,9 +317,12 @@ def test_krylov_forcing_is_eisenstat_walker_bounded_by_the_tolerance_on_the_grad
     |g| 2.1e-8 after 5.5e-6, asked 1.3e-5 of CG (hundreds of W-cycles) and
     ran out of time; with an earlier Hessian's factor no looser than leaves
     it at half of CONVERGED_MARGIN x tol, so that the step is the last;
-    an indefinite Hessian preconditioned by an earlier positive definite
-    factor: Eisenstat-Walker alone (the grown discs' paths past secondary
-    bifurcations depend on it: test_steps_on_the_way_...)."""
+    the floor only with a multilevel AMG hierarchy: with an earlier factor
+    preconditioning (PARDISO's last positive definite one for an indefinite
+    Hessian, one-level AMG), Eisenstat-Walker alone (the grown discs' paths
+    past secondary bifurcations depend on it, test_steps_on_the_way_...; the
+    stability map's thin panel with one-level AMG and the trust region took
+    812 instead of 318 Newton iterations with the floor)."""
     from shellritz.solve import CONVERGED_MARGIN, _forcing
     assert _forcing(True, False, True, 1e-3, 1e-2, 1e-9) == 1e-10
     assert _forcing(False, False, True, 1e-3, None, 1e-9) == 0.1
@@ -332,8 +335,40 @@ def test_krylov_forcing_is_eisenstat_walker_bounded_by_the_tolerance_on_the_grad
     assert _forcing(False, True, True, 1e-3, 1e-2, 1e-9) == pytest.approx(
         0.5 * CONVERGED_MARGIN * 1e-9 / 1e-3, rel=1e-12)
     assert _forcing(False, False, True, 1.0, 1e30, 1e-30) == 1e-10
-    # an indefinite Hessian preconditioned by an earlier factor: EW alone
+    # an earlier factor preconditioning (PARDISO's for an indefinite Hessian, one-level AMG): EW alone
     assert _forcing(False, False, False, 2.1e-8, 5.5e-6, 1e-8) == pytest.approx(ew, rel=1e-12)
+
+
+def test_the_forcing_floor_applies_with_a_multilevel_amg_hierarchy_only(monkeypatch):
+    """solve._forcing gets multilevel=True in the Newton steps of a
+    multilevel AMG solve (until a fall-back to the direct solver), False
+    with one-level AMG and with the direct solver ("auto" on the 10-ring
+    leaf; the test above for the rule)."""
+    import shellritz.linalg as linalg
+    from shellritz import solve as solve_module
+    forcing, seen = solve_module._forcing, []
+
+    def spy(exact, reused, multilevel, *args):
+        seen.append(multilevel)
+        return forcing(exact, reused, multilevel, *args)
+
+    monkeypatch.setattr(solve_module, "_forcing", spy)
+    for linear, levels, expected in (("auto", None, False), ("amg", "one", False), ("amg", "several", True)):
+        if levels == "several":
+            monkeypatch.setattr(linalg, "AMG_ONE_LEVEL_BLOCKS", 0)
+        seen.clear()
+        res = leaf(10).solve(verbose=False, linear=linear)
+        if linear == "amg":
+            assert res.history.iterations[0].linear == "amg"
+        assert seen and seen[0] == expected
+        if expected:
+            # multilevel AMG from the flat disc falls back to PARDISO on this
+            # leaf (CG reached 300 iterations twice; README "Worse from the
+            # flat disc"): from there on the steps are direct ones
+            fallback = any("falling back to the direct solver" in n for n in res.history.notes)
+            assert seen == sorted(seen, reverse=True) and (all(seen) or fallback)
+        else:
+            assert not any(seen)
 
 
 def test_predicted_last_newton_step_saves_a_hessian_per_load_step(monkeypatch):

@@ -310,7 +310,7 @@ class _Linear:
         return M if M is not None else jacobi(K)
 
 
-def _forcing(exact, reused, amg, gnorm, gnorm_prev, tol):
+def _forcing(exact, reused, multilevel, gnorm, gnorm_prev, tol):
     """Relative tolerance eta of the Krylov solve, ||K p + g|| <= eta |g|.
     With the factorization of the current Hessian as preconditioner: tight
     (an iteration or two anyway).  Else inexact Newton: Eisenstat-Walker
@@ -318,16 +318,19 @@ def _forcing(exact, reused, amg, gnorm, gnorm_prev, tol):
     the tolerance ``tol`` on |g|.  With an earlier Hessian's factorization
     (``reused``, cheap iterations) no looser than leaves the step's residual
     half the margin of a predicted last step below tol, so that the step is
-    the last; with AMG (``amg``) no tighter than leaves it at half of tol
-    (Kelley, Iterative Methods for Linear and Nonlinear Equations, 1995,
-    section 6.3.2): the gradient after the step is its residual plus a term
-    quadratic in the step, and a smaller residual does not end the solve
-    sooner (the 1M default leaf's third Newton step, from |g| 2.1e-8, asked
-    1.3e-5 of CG and ran out of time at 9 s a W-cycle).  Not with the
-    factorization of an earlier positive definite Hessian preconditioning
-    an indefinite one: its iterations are cheap, and past secondary
-    bifurcations (grown discs, bench/disc_robustness.py) which equilibrium
-    Newton reaches depends on them."""
+    the last; with a multilevel AMG hierarchy (``multilevel``) no tighter
+    than leaves it at half of tol (Kelley, Iterative Methods for Linear and
+    Nonlinear Equations, 1995, section 6.3.2): the gradient after the step
+    is its residual plus a term quadratic in the step, and a smaller
+    residual does not end the solve sooner (the 1M default leaf's third
+    Newton step, from |g| 2.1e-8, asked 1.3e-5 of CG and ran out of time at
+    9 s a W-cycle; with the floor 33 iterations).  Not where the
+    preconditioner is the factorization of an earlier Hessian (PARDISO's
+    last positive definite one for an indefinite Hessian, one-level AMG):
+    its iterations are cheap, and the paths depend on them (the grown discs
+    past secondary bifurcations, bench/disc_robustness.py; the stability
+    map's thin panel with one-level AMG and the trust region took 812
+    instead of 318 Newton iterations with the floor)."""
     if exact:
         return 1e-10
     # (the choice's safeguard max(eta, 0.9 eta_prev^2) acts only where
@@ -335,7 +338,7 @@ def _forcing(exact, reused, amg, gnorm, gnorm_prev, tol):
     eta = 0.1 if gnorm_prev is None else min(max(0.9 * (gnorm / gnorm_prev) ** 2, 1e-10), 0.1)
     if reused:
         return float(max(min(eta, 0.5 * CONVERGED_MARGIN * tol / gnorm), 1e-10))
-    return float(min(max(eta, 0.5 * tol / gnorm), 0.1) if amg else eta)
+    return float(min(max(eta, 0.5 * tol / gnorm), 0.1) if multilevel else eta)
 
 
 # trust region: a rejected step's radius shrinks to this fraction of the step
@@ -569,7 +572,8 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
                       "smaller step")
             return None
         matvec = lower_matvec(K)
-        eta = _forcing(exact and not reused, reused, not lin.direct, gnorm, gnorm_prev, tol)
+        multilevel = not lin.direct and not lin.solver.one_level
+        eta = _forcing(exact and not reused, reused, multilevel, gnorm, gnorm_prev, tol)
         ts = time.perf_counter()
         if exact:
             r = np.inf             # the Newton step, truncated to the region below
