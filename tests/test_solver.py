@@ -314,8 +314,8 @@ def test_krylov_forcing_is_eisenstat_walker_bounded_by_the_tolerance_on_the_grad
     0.9 (|g| / |g_prev|)^2 within [1e-10, 0.1], 0.1 on the first step; with
     AMG no tighter than leaves the residual at half the tolerance tol on
     |g| (Kelley 1995, 6.3.2): the 1M default leaf's third Newton step, from
-    |g| 2.1e-8 after 5.5e-6, asked 1.3e-5 of CG (hundreds of W-cycles) and
-    ran out of time; with an earlier Hessian's factor no looser than leaves
+    |g| 2.1e-8 after 5.5e-6, asked 1.3e-5 of CG and had not finished at the
+    run's 55-minute limit; with an earlier Hessian's factor no looser than leaves
     it at half of CONVERGED_MARGIN x tol, so that the step is the last;
     the floor only with a multilevel AMG hierarchy: with an earlier factor
     preconditioning (PARDISO's last positive definite one for an indefinite

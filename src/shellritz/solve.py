@@ -323,8 +323,8 @@ def _forcing(exact, reused, multilevel, gnorm, gnorm_prev, tol):
     Nonlinear Equations, 1995, section 6.3.2): the gradient after the step
     is its residual plus a term quadratic in the step, and a smaller
     residual does not end the solve sooner (the 1M default leaf's third
-    Newton step, from |g| 2.1e-8, asked 1.3e-5 of CG and ran out of time at
-    9 s a W-cycle; with the floor 33 iterations).  Not where the
+    Newton step, from |g| 2.1e-8, asked 1.3e-5 of CG and had not finished
+    at the run's 55-minute limit; with the floor, 33 iterations).  Not where the
     preconditioner is the factorization of an earlier Hessian (PARDISO's
     last positive definite one for an indefinite Hessian, one-level AMG):
     its iterations are cheap, and the paths depend on them (the grown discs
