@@ -324,33 +324,35 @@ def test_krylov_forcing_is_eisenstat_walker_bounded_by_the_tolerance_on_the_grad
     stability map's thin panel with one-level AMG and the trust region took
     812 instead of 318 Newton iterations with the floor)."""
     from shellritz.solve import CONVERGED_MARGIN, _forcing
-    assert _forcing(True, False, True, 1e-3, 1e-2, 1e-9) == 1e-10
-    assert _forcing(False, False, True, 1e-3, None, 1e-9) == 0.1
-    assert _forcing(False, False, True, 1e-3, 1e-2, 1e-9) == pytest.approx(9e-3, rel=1e-12)    # far: EW
+    assert _forcing("current factor", 1e-3, 1e-2, 1e-9) == 1e-10
+    assert _forcing("multilevel AMG", 1e-3, None, 1e-9) == 0.1
+    assert _forcing("multilevel AMG", 1e-3, 1e-2, 1e-9) == pytest.approx(9e-3, rel=1e-12)    # far: EW
     ew = 0.9 * (2.1e-8 / 5.5e-6) ** 2
-    assert _forcing(False, False, True, 2.1e-8, 5.5e-6, 1e-13) == pytest.approx(ew, rel=1e-12)
-    assert _forcing(False, False, True, 2.1e-8, 5.5e-6, 1e-9) == pytest.approx(0.5e-9 / 2.1e-8, rel=1e-12)
-    assert _forcing(False, False, True, 2.1e-8, 5.5e-6, 1e-8) == 0.1                         # capped
-    assert _forcing(False, True, True, 2.1e-8, 5.5e-6, 1e-8) == pytest.approx(ew, rel=1e-12)
-    assert _forcing(False, True, True, 1e-3, 1e-2, 1e-9) == pytest.approx(
+    assert _forcing("multilevel AMG", 2.1e-8, 5.5e-6, 1e-13) == pytest.approx(ew, rel=1e-12)
+    assert _forcing("multilevel AMG", 2.1e-8, 5.5e-6, 1e-9) == pytest.approx(0.5e-9 / 2.1e-8, rel=1e-12)
+    assert _forcing("multilevel AMG", 2.1e-8, 5.5e-6, 1e-8) == 0.1                         # capped
+    assert _forcing("reused factor", 2.1e-8, 5.5e-6, 1e-8) == pytest.approx(ew, rel=1e-12)
+    assert _forcing("reused factor", 1e-3, 1e-2, 1e-9) == pytest.approx(
         0.5 * CONVERGED_MARGIN * 1e-9 / 1e-3, rel=1e-12)
-    assert _forcing(False, False, True, 1.0, 1e30, 1e-30) == 1e-10
+    assert _forcing("multilevel AMG", 1.0, 1e30, 1e-30) == 1e-10
     # an earlier factor preconditioning (PARDISO's for an indefinite Hessian, one-level AMG): EW alone
-    assert _forcing(False, False, False, 2.1e-8, 5.5e-6, 1e-8) == pytest.approx(ew, rel=1e-12)
+    assert _forcing("earlier factor", 2.1e-8, 5.5e-6, 1e-8) == pytest.approx(ew, rel=1e-12)
+    with pytest.raises(ValueError, match="multilevel AMG"):
+        _forcing("amg", 2.1e-8, 5.5e-6, 1e-8)
 
 
 def test_the_forcing_floor_applies_with_a_multilevel_amg_hierarchy_only(monkeypatch):
-    """solve._forcing gets multilevel=True in the Newton steps of a
-    multilevel AMG solve (until a fall-back to the direct solver), False
-    with one-level AMG and with the direct solver ("auto" on the 10-ring
+    """solve._forcing is told "multilevel AMG" in the Newton steps of a
+    multilevel AMG solve (until a fall-back to the direct solver), never
+    with one-level AMG or the direct solver ("auto" on the 10-ring
     leaf; the test above for the rule)."""
     import shellritz.linalg as linalg
     from shellritz import solve as solve_module
     forcing, seen = solve_module._forcing, []
 
-    def spy(exact, reused, multilevel, *args):
-        seen.append(multilevel)
-        return forcing(exact, reused, multilevel, *args)
+    def spy(preconditioner, *args):
+        seen.append(preconditioner == "multilevel AMG")
+        return forcing(preconditioner, *args)
 
     monkeypatch.setattr(solve_module, "_forcing", spy)
     for linear, levels, expected in (("auto", None, False), ("amg", "one", False), ("amg", "several", True)):

@@ -310,35 +310,46 @@ class _Linear:
         return M if M is not None else jacobi(K)
 
 
-def _forcing(exact, reused, multilevel, gnorm, gnorm_prev, tol):
-    """Relative tolerance eta of the Krylov solve, ||K p + g|| <= eta |g|.
-    With the factorization of the current Hessian as preconditioner: tight
-    (an iteration or two anyway).  Else inexact Newton: Eisenstat-Walker
-    choice 2 (gamma 0.9, exponent 2, at most 0.1), bounded by
-    the tolerance ``tol`` on |g|.  With an earlier Hessian's factorization
-    (``reused``, cheap iterations) no looser than leaves the step's residual
-    half the margin of a predicted last step below tol, so that the step is
-    the last; with a multilevel AMG hierarchy (``multilevel``) no tighter
-    than leaves it at half of tol (Kelley, Iterative Methods for Linear and
-    Nonlinear Equations, 1995, section 6.3.2): the gradient after the step
-    is its residual plus a term quadratic in the step, and a smaller
-    residual does not end the solve sooner (the 1M default leaf's third
+# what preconditions a Newton step's CG, which sets its forcing (_forcing)
+FORCING_PRECONDITIONERS = ("current factor", "reused factor", "multilevel AMG", "earlier factor")
+
+
+def _forcing(preconditioner, gnorm, gnorm_prev, tol):
+    """Relative tolerance eta of the Krylov solve, ||K p + g|| <= eta |g|,
+    by the step's ``preconditioner`` (FORCING_PRECONDITIONERS).  With the
+    factorization of the current Hessian ("current factor"): tight (an
+    iteration or two anyway).  Else inexact Newton: Eisenstat-Walker choice
+    2 (gamma 0.9, exponent 2, at most 0.1), bounded by the tolerance
+    ``tol`` on |g|.  With the previous Hessian's factorization reused on a
+    fast Newton step ("reused factor", cheap iterations) no looser than
+    leaves the step's residual half the margin of a predicted last step
+    below tol, so that the step is the last; with a multilevel AMG
+    hierarchy ("multilevel AMG") no tighter than leaves it at half of tol
+    (Kelley, Iterative Methods for Linear and Nonlinear Equations, 1995,
+    section 6.3.2): the gradient after the step is its residual plus a term
+    quadratic in the step, and a smaller residual does not end the solve
+    sooner (the 1M default leaf's third
     Newton step, from |g| 2.1e-8, asked 1.3e-5 of CG and had not finished
-    at the run's 55-minute limit; with the floor, 33 iterations).  Not where the
-    preconditioner is the factorization of an earlier Hessian (PARDISO's
+    at the run's 55-minute limit; with the floor, 33 iterations).  Not with
+    the factorization of an earlier Hessian ("earlier factor": PARDISO's
     last positive definite one for an indefinite Hessian, one-level AMG):
     its iterations are cheap, and the paths depend on them (the grown discs
     past secondary bifurcations, bench/disc_robustness.py; the stability
     map's thin panel with one-level AMG and the trust region took 812
     instead of 318 Newton iterations with the floor)."""
-    if exact:
+    if preconditioner not in FORCING_PRECONDITIONERS:
+        raise ValueError(f"preconditioner={preconditioner!r}: one of {', '.join(FORCING_PRECONDITIONERS)}")
+    if preconditioner == "current factor":
         return 1e-10
     # (the choice's safeguard max(eta, 0.9 eta_prev^2) acts only where
     # 0.9 eta_prev^2 > 0.1, never below the cap of 0.1)
     eta = 0.1 if gnorm_prev is None else min(max(0.9 * (gnorm / gnorm_prev) ** 2, 1e-10), 0.1)
-    if reused:
+    if preconditioner == "reused factor":
         return float(max(min(eta, 0.5 * CONVERGED_MARGIN * tol / gnorm), 1e-10))
-    return float(min(max(eta, 0.5 * tol / gnorm), 0.1) if multilevel else eta)
+    if preconditioner == "multilevel AMG":
+        return float(min(max(eta, 0.5 * tol / gnorm), 0.1))
+    return float(eta)
+
 
 
 # trust region: a rejected step's radius shrinks to this fraction of the step
@@ -473,7 +484,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
     last_step = np.inf
     gnorms, energies = [gnorm], [E]
     factorized = False          # the factorization belongs to the current x
-    gnorm_prev, eta = None, 0.1
+    gnorm_prev = None
     first_norm = None           # size of the first step (trust region collapse test)
     # the trial is evaluated with its Hessian (one assembly instead of two
     # when it is accepted) unless a rejection is likely: after a rejection,
@@ -572,8 +583,9 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
                       "smaller step")
             return None
         matvec = lower_matvec(K)
-        multilevel = not lin.direct and not lin.solver.one_level
-        eta = _forcing(exact and not reused, reused, multilevel, gnorm, gnorm_prev, tol)
+        eta = _forcing("reused factor" if reused else "current factor" if exact
+                       else "multilevel AMG" if not (lin.direct or lin.solver.one_level)
+                       else "earlier factor", gnorm, gnorm_prev, tol)
         ts = time.perf_counter()
         if exact:
             r = np.inf             # the Newton step, truncated to the region below
