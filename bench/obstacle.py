@@ -30,9 +30,14 @@ Large load (--large-load): the pinched hemisphere at F = 100 per load point
 (St Venant-Kirchhoff, same constants; strongly nonlinear), both metrics,
 the finest DKT mesh standing in for the converged answer.
 
+Fine reference (--fine): the membrane-dominated panel at n = 256 for
+t/R = 1e-3 and 1e-4, both metrics (about 10 minutes).  Cost (--cost): the
+energy, gradient and Hessian assembly times of both metrics on one mesh.
+
 Writes bench/results/obstacle.json, obstacle.png, locking.json, locking.png
-(with the machine), or hemisphere_large_load.json.
-Run:  python bench/obstacle.py [--quick] [--large-load]
+(with the machine), hemisphere_large_load.json, locking_fine.json or
+membrane_cost.json.
+Run:  python bench/obstacle.py [--quick] [--large-load] [--fine] [--cost]
 (quick: n <= 16 / 32, a few minutes once compiled).
 """
 
@@ -136,9 +141,9 @@ def locking_panel(n, t, membrane="dkt", clamp="generator"):
     linear solve at the reference (the tangent stiffness; a Newton solve of a
     load small enough to stay linear for t/R = 1e-4 is below the solver's
     round-off floor, the membrane stiffness being 1e8 times the bending one).
-    E = t^-3 keeps the bending stiffness O(1) and the arithmetic well scaled."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spl
+    E = t^-3 keeps the bending stiffness O(1) and the arithmetic well scaled.
+    The solve: the product's direct solver (linalg, method "auto")."""
+    from shellritz.linalg import make_linear_solver
     mesh = shapes.cylinder(n, n, radius=1.0, length=2.0, theta=(-np.radians(40), np.radians(40)))
     s = Shell(mesh, t, lame(t ** -3, 0.0), membrane=membrane)
     if clamp == "generator":
@@ -149,13 +154,70 @@ def locking_panel(n, t, membrane="dkt", clamp="generator"):
     s.face_tractions(q_plus=lambda X, N: -N / 2, q_minus=lambda X, N: -N / 2)   # q = 1
     s._setup()
     s.set_parameter(1.0)
-    _, g, K = s.evaluate(s.free_state(), 2)      # g = -f at the stress-free reference
-    K = K + sp.tril(K, -1).T
-    return float(-g @ spl.spsolve(K.tocsc(), -g))
+    _, g, K = s.evaluate(s.free_state(), 2)      # g = -f at the stress-free reference (K: lower CSR)
+    solver = make_linear_solver("auto", K.shape[0], K.indptr, K.indices)
+    try:
+        negative = solver.factorize(K)
+        if negative:
+            raise RuntimeError(f"the panel's stiffness has {negative} negative eigenvalues")
+        return float(g @ solver.solve(g))
+    finally:
+        solver.release()
+
+
+def fine_reference():
+    """bench/results/locking_fine.json: the membrane-dominated panel at n = 256
+    (131k triangles) for t/R = 1e-3 and 1e-4, both metrics: where the DKT
+    metric no longer locks much at 1e-3, the converged value the coarse
+    meshes are judged against."""
+    out = {"n": 256, "curved": {}}
+    for membrane in MEMBRANES:
+        out["curved"][membrane] = {}
+        for t in (1e-3, 1e-4):
+            t0 = time.perf_counter()
+            v = locking_panel(256, t, membrane, "curved")
+            out["curved"][membrane][str(t)] = v
+            print(f"curved    {membrane:5s} t/R={t:g} n=256: {v:.6g} ({time.perf_counter() - t0:.0f} s)",
+                  flush=True)
+    out = {"machine": machine_info(), **out}
+    (RESULTS / "locking_fine.json").write_text(json.dumps(out, indent=2))
 
 
 MEMBRANES = ("dkt", "regge")
 THICKNESS = (1e-2, 1e-3, 1e-4)
+
+
+def membrane_cost(rings=40, repeats=5):
+    """bench/results/membrane_cost.json: the energy, gradient and Hessian
+    assembly of both metrics on the same mesh (a disc of `rings` rings,
+    in-plane growth, a perturbed state), medians of `repeats` in one process
+    after a first call whose time (compilation included) is reported apart."""
+    mesh = shapes.disc(rings)
+    out = {"n_triangles": mesh.n_triangles, "repeats": repeats, "metrics": {}}
+    for membrane in MEMBRANES:
+        s = Shell(mesh, 0.01, lame(1.0, 0.3), membrane=membrane)
+        s.set_growth(G0=np.diag([1.1, 1.05, 1.0]))
+        s._setup()
+        s.set_parameter(1.0)
+        x = s.free_state() + 1e-3 * np.random.default_rng(0).standard_normal(len(s.free))
+        t0 = time.perf_counter()
+        s.evaluate(x, 2)
+        first = time.perf_counter() - t0
+        times = {0: [], 1: [], 2: []}
+        for _ in range(repeats):
+            for mode in times:
+                t0 = time.perf_counter()
+                s.evaluate(x, mode)
+                times[mode].append(time.perf_counter() - t0)
+        out["metrics"][membrane] = {"first_hessian_s": first,
+                                    **{f"{k}_s": float(np.median(times[m]))
+                                       for m, k in ((0, "energy"), (1, "gradient"), (2, "hessian"))}}
+        print(membrane, out["metrics"][membrane], flush=True)
+    out["regge_over_dkt"] = {k: out["metrics"]["regge"][k] / out["metrics"]["dkt"][k]
+                             for k in ("energy_s", "gradient_s", "hessian_s")}
+    print("regge / dkt:", out["regge_over_dkt"])
+    out = {"machine": machine_info(), **out}
+    (RESULTS / "membrane_cost.json").write_text(json.dumps(out, indent=2))
 
 
 def main():
@@ -163,10 +225,18 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--large-load", action="store_true",
                     help="only the pinched hemisphere at a large load (both metrics)")
+    ap.add_argument("--fine", action="store_true",
+                    help="only the membrane-dominated panel at n = 256 (both metrics)")
+    ap.add_argument("--cost", action="store_true",
+                    help="only the assembly time of both metrics on one mesh")
     args = ap.parse_args()
     RESULTS.mkdir(exist_ok=True)
+    if args.cost:
+        return membrane_cost()
     if args.large_load:
         return large_load(args.quick)
+    if args.fine:
+        return fine_reference()
     ns = [4, 8, 16] if args.quick else [4, 8, 16, 32, 64]
     out = {"courses": {}}
     for name, fn in (("Scordelis-Lo roof", scordelis_lo), ("pinched cylinder", pinched_cylinder),

@@ -129,6 +129,8 @@ def test_bad_input_is_rejected_with_a_clear_message():
         s.pressure(1.0, face="top")
     with pytest.raises(ValueError, match="membrane='cst': choose one of"):
         Shell(mesh, 0.1, LAW, membrane="cst")
+    with pytest.raises(ValueError, match="membrane='regge' needs a rule of 6 or 7 points, got quadrature=3"):
+        Shell(mesh, 0.1, LAW, membrane="regge", quadrature=3)
     with pytest.raises(TypeError):
         Shell(mesh, 0.1, "rubber")
     with pytest.raises(TypeError, match="thickness must be a number, got '0.1'"):

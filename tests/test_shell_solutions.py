@@ -8,9 +8,10 @@ Observed (see the assertions):
   the mesh-extrapolated radius (Richardson, n = 128, 256, 512) matches the
   1D shell value to 2e-9 and the error against eq:r0ex falls by 15.9-16.0 per
   halving of h = 0.2 ... 0.025 (fourth order; at least third is required);
-* with Shell(membrane="regge"): strip errors 4.7e-3, 8.7e-4, 1.1e-4 at 20,
-  40, 80 (ratios 5.4, 7.7); thin cylinder (h = 0.01) second order, ratios
-  4.08-4.50, within 2 % of the DKT metric's errors;
+* with Shell(membrane="regge"): strip errors 2.8e-3, 8.8e-5, 8.9e-5, 7.5e-6
+  at 20, 40, 80, 160 (below the DKT metric's, not at a steady rate); thin
+  cylinder (h = 0.01) second order, ratios 3.99-4.00, errors 10-20 % below
+  the DKT metric's;
 * clamped / simply supported square plates under uniform pressure (nu = 0.3):
   centre deflection within 0.7 % / 0.4 % of the classical coefficients on a
   16 x 16 mesh, errors falling like the mesh size squared, on structured and
@@ -58,14 +59,21 @@ def test_strip_rolls_into_the_exact_circle():
     assert errors[0] / errors[1] > 6 and errors[1] / errors[2] > 6, errors
 
 
+@pytest.mark.filterwarnings("ignore::shellritz.validity.ValidityWarning")
 def test_strip_with_the_regge_metric_converges():
-    """Shell(membrane="regge"): errors 4.7e-3, 8.7e-4, 1.1e-4 at 20, 40, 80
-    (below the DKT metric's 2.6e-2, 2.3e-3, 2.2e-4) but the ratios are 5.4 and
-    7.7 (DKT about 10): the blend beta = 2h/l_e (0.43 ... 0.8 here) moves the
-    element towards the DKT one as the mesh is refined."""
-    errors = [strip_error(nx, membrane="regge") for nx in (20, 40, 80)]
-    assert errors[-1] < 1.5e-4, errors
-    assert errors[0] / errors[1] > 5 and errors[1] / errors[2] > 7, errors
+    """Shell(membrane="regge"): errors 2.8e-3, 8.8e-5, 8.9e-5, 7.5e-6 at 20,
+    40, 80, 160 (DKT metric 2.6e-2, 2.3e-3, 2.2e-4, 1.8e-5): below the
+    DKT metric's at every mesh but not at a steady rate: the blend beta =
+    2h/l_e rises from 0.43 to 0.78 over these meshes, and the plain cubic's
+    metric, O(l^2) accurate, takes over from the Regge field's O(l^4) (with
+    beta = 0: 3.0e-4, 2.1e-5 at 20, 40, but then the in-plane rotation of
+    the nodal gradients has no stiffness and the solve at 80 fails).  At 160
+    the elements are shorter than h: the validity diagnostic warns of the
+    strain-gradient share, as with the DKT metric, the rolled state being
+    almost stress free (ignored here)."""
+    errors = [strip_error(nx, membrane="regge") for nx in (20, 40, 80, 160)]
+    assert errors[0] / errors[1] > 20 and errors[1] < 1e-4 and errors[2] < 1e-4, errors
+    assert errors[3] < 1e-5, errors
 
 
 def test_strip_on_a_perturbed_mesh_converges_too():
@@ -105,15 +113,16 @@ def test_cylinder_mesh_convergence_at_fixed_h():
 
 
 def test_cylinder_mesh_convergence_with_the_regge_metric():
-    """h = 0.01, so that the regge metric is not the DKT one (beta = 2h/l_e =
-    0.07, 0.14, 0.28 at n = 8, 16, 32; at h = 0.1 beta = 1 on these meshes):
-    errors 1.89e-3, 4.63e-4, 1.07e-4, 2.39e-5 for n = 8 ... 64, ratios 4.08,
-    4.32, 4.50 (DKT metric: 1.86e-3, 4.53e-4, 1.04e-4, 2.33e-5): second order."""
+    """h = 0.01, so that the regge metric is not the plain cubic's (beta =
+    2h/l_e = 0.07, 0.14, 0.28 at n = 8, 16, 32; at h = 0.1 beta = 1 on these
+    meshes): errors 1.51e-3, 3.77e-4, 9.44e-5, 2.36e-5 for n = 8 ... 64,
+    ratios 3.99, 4.00, 4.00 (DKT metric: 1.86e-3, 4.53e-4, 1.04e-4, 2.33e-5):
+    second order."""
     h = 0.01
     one_d = shell_cylinder_r0(GAMMA, QN * h, h)
     err = [abs(cylinder_radius(h, n, "regge", spread=0.2) - one_d) for n in (8, 16, 32)]
     ratios = [err[k] / err[k + 1] for k in range(2)]
-    assert err[-1] < 1.2e-4 and all(3.8 < r < 4.7 for r in ratios), (err, ratios)
+    assert err[-1] < 1e-4 and all(3.9 < r < 4.1 for r in ratios), (err, ratios)
 
 
 def test_cylinder_error_against_exact_3d_solution_falls_with_h():

@@ -99,7 +99,8 @@ class Shell(Solvable):
     level : "membrane" | "bending" | "consistent" (MODEL.md section 4)
     quadrature : points of the triangle rule (default 6, see README)
     membrane : "dkt" (the metric of the DKT gradient field) or "regge" (the
-        assumed, locking-free metric of discretize/regge.py; README, Membrane locking)
+        assumed, locking-free metric of discretize/regge.py, quadrature 6 or 7;
+        README, Membrane locking)
     """
 
     MEMBRANES = ("dkt", "regge")
@@ -118,6 +119,10 @@ class Shell(Solvable):
         self.bary, self.wts = rule(quadrature)
         if membrane not in self.MEMBRANES:
             raise ValueError(f"membrane={membrane!r}: choose one of {self.MEMBRANES}")
+        if membrane == "regge" and quadrature < 6:
+            # the blend's zero element mean needs the quartic metric integrated exactly
+            raise ValueError(f"membrane='regge' needs a rule of 6 or 7 points, got quadrature="
+                             f"{quadrature} (discretize/regge.py)")
         self.membrane = membrane
         self.strain_gradient = self._strain_gradient_term()
         n = mesh.n_nodes

@@ -14,57 +14,70 @@ element is accurate only for ``l < sqrt(h R)`` (README, Membrane locking).
 
 The assumed metric
 ------------------
-Built only from quantities that an isometry leaves (almost) unchanged, in the
-spirit of the Regge interpolation of the membrane strain of Neunteufel &
-Schoeberl (CMAME 373, 2021, 113524: edge tangential-tangential moments of the
-metric, Christiansen 2011, Li 2018):
+The first-order Regge interpolant of the metric of a conforming position
+field, as the membrane strain of the HHJ/TDNNS shells is (Neunteufel &
+Schoeberl, CMAME 373, 2021, 113524: the Regge interpolant of the metric,
+Christiansen 2011, Li 2018), with the DKT element's own degrees of freedom:
 
-* the *nodal* metrics ``C_i = d_i^T d_i`` of the nodal gradients (exactly
-  invariant under an isometry);
-* along each edge k (nodes i -> j, chart tangent t, length l) the cubic
-  Hermite curve of the DKT edge (positions r_i, r_j, end derivatives
-  ``d_i t``, ``d_j t``), ``r_s = c psi_c + m0 psi_0 + m1 psi_1`` with
-  ``c = (r_j - r_i)/l``: its mean stretch ``E_k = mean |r_s|^2`` (invariant to
-  O(l^4): the Hermite curve follows the arc, not the chord) and its mid-point
-  stretch ``p_k = |r_s(1/2)|^2 = |3/2 c - (m0 + m1)/4|^2``.
+* the position field is the reduced cubic (BCIZ: Bazeley, Cheung, Irons &
+  Zienkiewicz 1965) of the nodal positions and gradients, cubic_gradient:
+  its edge traces are the cubic Hermite curves of the DKT edges, so it is
+  continuous between elements, and it reproduces quadratic fields;
+* its metric g = Bc^T Bc is represented by the degrees of freedom of the
+  first-order Regge element (data_forms): on each edge k the moments
+  ``int_0^1 g_tt (1, 2s - 1) ds`` of the tangential stretch of the Hermite
+  curve (which follows the arc, not the chord: invariant under an isometry
+  to O(l^4)), and the element mean of g;
+* R(U), the linear symmetric tensor field with those degrees of freedom
+  (metric_coefficients), is the membrane metric.
 
-Then ``A(U) = C_R + F - mean(F)`` at each quadrature point, where
-``C_R`` is the constant (lowest-order Regge) metric with the edge
-tangential components ``t_k^T C_R t_k = E_k``, and ``F`` the quadratic
-tensor field with the vertex values ``C_i`` and mid-edge values
-``M_k = (C_i + C_j)/2 + (p_k - t^T (C_i + C_j)/2 t) t t^T`` (tangential
-component from the Hermite curve, the others the vertex average); ``mean`` is
-the rule's weighted mean.  As the DKT shift (README, Design) makes the
-positions control the element mean of Theta, here the edge curves control
-the element mean of the metric (``C_R``), which is what keeps the in-plane
-patch test; the nodal gradients shape the fluctuation only, and the
-mid-edge ``p_k`` tie their tangential components to the positions.
+An isometric bending of a panel given exactly at the nodes changes R by
+O(l^4) (DKT: O(l^2)), tested; the second-order Regge interpolant (edge
+moments to degree 2, interior moments against linear functions) sees the
+O(l^2) pointwise error of the reduced cubic and changes by O(l^2) (tried:
+a third of the DKT change), so it would lock.
 
-The metric handed to the point kernel is A mapped onto the reference metric,
-blended with the DKT metric ``C`` (README, Membrane locking):
+Since the element mean of R is that of a conforming field's metric, a
+uniform stress S does on R the work it does on g: ``int S : dR = int S : dg``
+and ``int S : d2R = int S : d2g``.  So the uniform state of the in-plane
+patch test is an exact equilibrium when the boundary data of the element
+(positions and nodal gradients) are exact, and the geometric stiffness of a
+uniform tension is that of the conforming field, positive: no spurious
+instability under finite strain (the lowest-order Regge interpolant of the
+edge arcs alone, an earlier version, had them: README, Membrane locking).
+With the positions alone prescribed on a boundary, its Hermite edge curves
+bow between the nodes under a tension, as a membrane pinned at points does
+(README).
 
-    Chat = (1 - beta) K^T A(U) K + beta C,   beta = min(1, BLEND h / l_e),
+Neither R's edge moments nor its mean see a uniform in-plane rotation of the
+nodal gradients about the normal ("drilling") to first order; the pointwise
+metric g of the reduced cubic does.  The metric handed on is the blend
+
+    A(U) = (1 - beta) R(U) + beta g(U),   beta = min(1, BLEND h / l_e)
+
+(l_e the longest edge).  g - R has zero element mean (the 6- and 7-point
+rules integrate the quartic g exactly), so the blend leaves the two
+identities above, and with them the patch test, alone, whatever beta is in
+neighbouring elements.  The drilling stiffness is beta^2 ~ (h/l)^2 of the
+membrane one, the scale of bending, while g's O(l^2 kappa dkappa) parasitic
+strain enters only as beta l^2 kappa dkappa ~ h l kappa dkappa -- no
+locking.  The weighting is the membrane analogue of the t^2 / (t^2 + alpha
+l^2) of stabilized shear-locking-free plate elements (Lyly, Stenberg &
+Vihinen, CMAME 110, 1993).  BLEND = 2: the obstacle course (README, Membrane
+locking).
+
+A is mapped onto the reference metric,
+
+    Chat = K^T A(U) K,
 
 with the constant 2x2 ``K = L_Aref^{-T} L_Cref^T`` (Cholesky factors of
-A(U_ref) and C(U_ref)), so that ``K^T A(U_ref) K = C_ref``: the reference is
-exactly stress free, and Chat is homogeneous of degree 2 in U (uniform growth
-``r = lambda X`` stays exactly stress free; an additive ``C_ref + A(U) -
-A(U_ref)`` would not).
+A(U_ref) and of the DKT metric C(U_ref)), so that ``Chat(U_ref) = C_ref``:
+the reference is exactly stress free, and Chat is homogeneous of degree 2
+in U (uniform growth ``r = lambda X`` stays exactly stress free; an additive
+``C_ref + A(U) - A(U_ref)`` would not).
 
-(l_e the longest edge).  The blend is what controls the in-plane rotation of
-the nodal gradients about the normal ("drilling"), which no metric sees to
-first order: its stiffness is beta^2 ~ (h/l)^2 of the membrane one, the
-scale of bending, while the DKT metric's parasitic strain enters only as
-beta (l^2 kappa dkappa) ~ h l kappa dkappa -- no locking.  The weighting is
-the membrane analogue of the t^2 / (t^2 + alpha l^2) of stabilized
-shear-locking-free plate elements (Lyly, Stenberg & Vihinen, CMAME 110, 1993).
-For l_e <= BLEND h the element is the DKT element.  BLEND = 2 was chosen on the
-obstacle course (README, Membrane locking): 1 to 4 all cure the locking
-panel; larger values move the thin pinched hemisphere back towards locking
-(0.979 at 16 x 16 with 8), smaller ones make Scordelis-Lo slightly stiffer.
-
-Tangent vectors with that metric: ``rhat_a = r_b M_ba`` with ``M`` upper
-triangular, ``M^T C M = Chat`` (``M = L_C^{-T} L_hat^T`` from the Cholesky
+Tangent vectors with that metric: ``rhat_a = r_b M_ba`` (r_a those of the DKT
+field) with ``M`` upper triangular, ``M^T C M = Chat`` (``M = L_C^{-T} L_hat^T`` from the Cholesky
 factors: rhat is the Gram-Schmidt frame of (r_1, r_2) times the Cholesky
 factor of Chat), so the point kernel gets a well-defined ``F0`` with the
 assumed metric and the same tangent plane:
@@ -73,189 +86,211 @@ assumed metric and the same tangent plane:
     sigma = sqrt(chat11 / c11),  rho = sqrt(det Chat / det C).
 
 Derivatives of M (to second order) by forward-mode jets in the 9 variables
-(r_1, r_2, Ahat).
+(r_1, r_2, Chat).
 """
 
 import numpy as np
 from numba import njit
 
 from ..kernels import KERNEL
+from .dkt import RULES
 
-N_DATA = 15             # data: nodal metrics (3 x 3 components), E_k (3), p_k (3)
+N_REGGE = 9             # the first-order Regge dofs: edge moments (3 x 2), element mean (3)
+MAX_POINTS = max(len(w) for _, w in RULES.values())   # largest rule of the element
+N_DATA = N_REGGE + 3 * MAX_POINTS   # + the metric of the reduced cubic at each point
 BLEND = 2.0             # beta = min(1, BLEND h / l_e)
 N_JET = 9               # jet variables: r_1 (3), r_2 (3), K^T A K (3: 11, 12, 22)
 
-# int_0^1 of products of (psi_c, psi_0, psi_1) = (6s - 6s^2, 1 - 4s + 3s^2, -2s + 3s^2)
-EDGE_MEAN = np.array([[6.0 / 5.0, -1.0 / 10.0, -1.0 / 10.0],
-                      [-1.0 / 10.0, 2.0 / 15.0, -1.0 / 30.0],
-                      [-1.0 / 10.0, -1.0 / 30.0, 2.0 / 15.0]])
-EDGE_MID = np.array([1.5, -0.25, -0.25])        # (psi_c, psi_0, psi_1) at s = 1/2
-
-
-# The data are fixed quadratic forms of N_W vectors w, each a combination of at
-# most two nodal vectors, w_p = WC[p, 0] u_{WI[p, 0]} + WC[p, 1] u_{WI[p, 1]}:
-#   w_{3k}, w_{3k+1}, w_{3k+2} = c, m0 = d_i t, m1 = d_j t of edge k;
-#   w_{9+2i+a} = d_i e_a (column a of the nodal gradient of node i in the chart).
-N_W = 15
-
-
-def _data_tables():
-    wi = np.zeros((N_W, 2), np.int64)
-    sup = -np.ones((N_DATA, 3), np.int64)
-    gam = np.zeros((N_DATA, 3, 3))
-    for k in range(3):
-        i, j = (k + 1) % 3, (k + 2) % 3
-        wi[3 * k] = (3 * j, 3 * i)
-        wi[3 * k + 1] = (3 * i + 1, 3 * i + 2)
-        wi[3 * k + 2] = (3 * j + 1, 3 * j + 2)
-        for d, g in ((9 + k, EDGE_MEAN), (12 + k, np.outer(EDGE_MID, EDGE_MID))):
-            sup[d] = (3 * k, 3 * k + 1, 3 * k + 2)
-            gam[d] = g
-    for i in range(3):
-        wi[9 + 2 * i] = wi[10 + 2 * i] = (3 * i + 1, 3 * i + 2)
-        for c, (a, b) in enumerate(((0, 0), (0, 1), (1, 1))):
-            sup[3 * i + c, :2] = (9 + 2 * i, 10 + 2 * i)
-            gam[3 * i + c, a, b] += 0.5
-            gam[3 * i + c, b, a] += 0.5
-    return wi, sup, gam
-
-
-WI, DATA_SUPPORT, DATA_FORM = _data_tables()
+# 3-point Gauss-Legendre rule on [0, 1]: exact to degree 5 (g_tt quartic x linear)
+EDGE_S = np.array([0.5 - 0.5 * np.sqrt(0.6), 0.5, 0.5 + 0.5 * np.sqrt(0.6)])
+EDGE_W = np.array([5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0])
+# element mean: Dunavant's 6-point rule, exact to degree 4 (g quartic)
+INT_BARY, INT_W = RULES[6]
 
 
 @njit(**KERNEL)
-def data_maps(Q, et, el, WC):
-    """WC (N_W, 2): the element's coefficients of the w vectors (above).
-    Data j = 3 i + (0, 1, 2): components (11, 12, 22) of C_i in the chart;
-    9 + k: E_k; 12 + k: p_k (edge k = node (k+1)%3 -> (k+2)%3)."""
+def cubic_gradient(lam, Q, gl, P, Bc):
+    """Bc (2, 9): chart gradient of the reduced cubic (BCIZ) position field at
+    barycentric lam, dr/dxi_a = sum_k Bc[a, k] u_k over the nodal vectors
+    (r_0, a_01, a_02, r_1, ...).  The field is
+        r = sum_i r_i N_i + sum_i sum_{j != i} delta_ij P_ij,
+        N_i = 3 lam_i^2 - 2 lam_i^3 + 2 b,  P_ij = lam_i^2 lam_j + b / 2,
+    b = lam_0 lam_1 lam_2, delta_ij = d_i (p_j - p_i) the nodal gradient along
+    the edge (P chart vertex positions (3, 2)): the cubic Hermite triangle with
+    its centroid value set to (1/3) sum_i (r_i + d_i (p_c - p_i) / 2), which
+    reproduces quadratic fields.  Its edge traces are the cubic Hermite curves
+    of the DKT edges (b = 0 there): the field is continuous between elements."""
+    l0, l1, l2 = lam[0], lam[1], lam[2]
+    for a in range(2):
+        db = l1 * l2 * gl[0, a] + l0 * l2 * gl[1, a] + l0 * l1 * gl[2, a]
+        for i in range(3):
+            li = lam[i]
+            Bc[a, 3 * i] = (6.0 * li - 6.0 * li * li) * gl[i, a] + 2.0 * db
+            Bc[a, 3 * i + 1] = 0.0
+            Bc[a, 3 * i + 2] = 0.0
+            for j in range(3):
+                if j == i:
+                    continue
+                dP = 2.0 * li * lam[j] * gl[i, a] + li * li * gl[j, a] + 0.5 * db
+                for s in range(2):
+                    f = (Q[i, s, 0] * (P[j, 0] - P[i, 0]) + Q[i, s, 1] * (P[j, 1] - P[i, 1]))
+                    Bc[a, 3 * i + 1 + s] += f * dP
+
+
+@njit(**KERNEL)
+def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
+    """G (N_DATA, 9, 9): the data as quadratic forms of the element's nodal
+    vectors, datum_j = sum_pq G[j, p, q] u_p . u_q, of the reduced cubic's
+    metric g = Bc^T Bc (cubic_gradient):
+      j = 2 k + m: the moments int_0^1 g_tt (1, 2s - 1) ds along edge k
+        (node (k+1)%3 -> (k+2)%3, s from 0 to 1, t its chart unit tangent);
+      j = 6 + c: the element mean of g, components c = (11, 12, 22)
+    (the degrees of freedom of the first-order Regge element);
+      j = N_REGGE + 3 q + c: g at the element's quadrature point q (bary).
+    P (3, 2), Bc (2, 9), lam (3) work."""
+    # chart vertex positions (p_0 = 0; edge k runs from node k+1 to node k+2)
+    P[0, 0] = 0.0
+    P[0, 1] = 0.0
+    P[1, 0] = el[2] * et[2, 0]
+    P[1, 1] = el[2] * et[2, 1]
+    P[2, 0] = -el[1] * et[1, 0]
+    P[2, 1] = -el[1] * et[1, 1]
+    for j in range(N_DATA):
+        for p in range(9):
+            for q in range(9):
+                G[j, p, q] = 0.0
     for k in range(3):
         i = (k + 1) % 3
-        j = (k + 2) % 3
-        WC[3 * k, 0] = 1.0 / el[k]
-        WC[3 * k, 1] = -1.0 / el[k]
-        for s in range(2):
-            WC[3 * k + 1, s] = Q[i, s, 0] * et[k, 0] + Q[i, s, 1] * et[k, 1]
-            WC[3 * k + 2, s] = Q[j, s, 0] * et[k, 0] + Q[j, s, 1] * et[k, 1]
-    for i in range(3):
-        for a in range(2):
-            for s in range(2):
-                WC[9 + 2 * i + a, s] = Q[i, s, a]
+        jn = (k + 2) % 3
+        t0, t1 = et[k, 0], et[k, 1]
+        for g in range(3):
+            s = EDGE_S[g]
+            lam[k] = 0.0
+            lam[i] = 1.0 - s
+            lam[jn] = s
+            cubic_gradient(lam, Q, gl, P, Bc)
+            for m in range(2):
+                wq = EDGE_W[g] * (1.0 if m == 0 else 2.0 * s - 1.0)
+                for p in range(9):
+                    vp = t0 * Bc[0, p] + t1 * Bc[1, p]
+                    for q in range(9):
+                        G[2 * k + m, p, q] += wq * vp * (t0 * Bc[0, q] + t1 * Bc[1, q])
+    for g in range(INT_W.shape[0]):
+        for c in range(3):
+            lam[c] = INT_BARY[g, c]
+        cubic_gradient(lam, Q, gl, P, Bc)
+        wq = INT_W[g]
+        for p in range(9):
+            for q in range(9):
+                G[6, p, q] += wq * Bc[0, p] * Bc[0, q]
+                G[7, p, q] += 0.5 * wq * (Bc[0, p] * Bc[1, q] + Bc[1, p] * Bc[0, q])
+                G[8, p, q] += wq * Bc[1, p] * Bc[1, q]
+    for g in range(bary.shape[0]):
+        cubic_gradient(bary[g], Q, gl, P, Bc)
+        j = N_REGGE + 3 * g
+        for p in range(9):
+            for q in range(9):
+                G[j, p, q] = Bc[0, p] * Bc[0, q]
+                G[j + 1, p, q] = 0.5 * (Bc[0, p] * Bc[1, q] + Bc[1, p] * Bc[0, q])
+                G[j + 2, p, q] = Bc[1, p] * Bc[1, q]
 
 
 @njit(**KERNEL)
-def data_values(WC, blocks, w, D):
-    """w (N_W, 3) of the nodal vectors blocks (9, 3) and the data D (N_DATA)."""
-    for p in range(N_W):
-        k, l = WI[p, 0], WI[p, 1]
-        for c in range(3):
-            w[p, c] = WC[p, 0] * blocks[k, c] + WC[p, 1] * blocks[l, c]
+def data_values(G, blocks, gram, D):
+    """The data D (N_DATA) of the nodal vectors blocks (9, 3); gram (9, 9) work."""
+    for p in range(9):
+        for q in range(9):
+            gram[p, q] = (blocks[p, 0] * blocks[q, 0] + blocks[p, 1] * blocks[q, 1]
+                          + blocks[p, 2] * blocks[q, 2])
     for j in range(N_DATA):
         s = 0.0
-        for a in range(3):
-            pa = DATA_SUPPORT[j, a]
-            if pa < 0:
-                continue
-            for b in range(3):
-                pb = DATA_SUPPORT[j, b]
-                if pb < 0:
-                    continue
-                s += DATA_FORM[j, a, b] * (w[pa, 0] * w[pb, 0] + w[pa, 1] * w[pb, 1]
-                                           + w[pa, 2] * w[pb, 2])
+        for p in range(9):
+            for q in range(9):
+                s += G[j, p, q] * gram[p, q]
         D[j] = s
 
 
 @njit(**KERNEL)
-def data_gradients(WC, w, dD):
+def data_gradients(G, blocks, dD):
     """dD (N_DATA, 27): derivatives of the data by the nodal vectors (9 x 3)."""
     for j in range(N_DATA):
-        for q in range(27):
-            dD[j, q] = 0.0
-        for a in range(3):
-            pa = DATA_SUPPORT[j, a]
-            if pa < 0:
-                continue
+        for p in range(9):
             for c in range(3):
-                g = 0.0
-                for b in range(3):
-                    pb = DATA_SUPPORT[j, b]
-                    if pb >= 0:
-                        g += 2.0 * DATA_FORM[j, a, b] * w[pb, c]
-                for l in range(2):
-                    dD[j, 3 * WI[pa, l] + c] += WC[pa, l] * g
+                s = 0.0
+                for q in range(9):
+                    s += G[j, p, q] * blocks[q, c]
+                dD[j, 3 * p + c] = 2.0 * s
 
 
 @njit(**KERNEL)
-def add_data_hessian(WC, gamma, ke):
+def add_data_hessian(G, gamma, ke):
     """Upper triangle of ke (27, 27) += sum_j gamma_j d2 D_j / du2 (= a 9 x 9
     matrix (x) I3)."""
-    for j in range(N_DATA):
-        if gamma[j] == 0.0:
-            continue
-        for a in range(3):
-            pa = DATA_SUPPORT[j, a]
-            if pa < 0:
+    for p in range(9):
+        for q in range(p, 9):
+            s = 0.0
+            for j in range(N_DATA):
+                s += gamma[j] * G[j, p, q]
+            if s == 0.0:
                 continue
-            for b in range(3):
-                pb = DATA_SUPPORT[j, b]
-                if pb < 0 or DATA_FORM[j, a, b] == 0.0:
-                    continue
-                f = 2.0 * gamma[j] * DATA_FORM[j, a, b]
-                for l in range(2):
-                    k1 = WI[pa, l]
-                    for l2 in range(2):
-                        k2 = WI[pb, l2]
-                        if k1 <= k2:
-                            v = f * WC[pa, l] * WC[pb, l2]
-                            for c in range(3):
-                                ke[3 * k1 + c, 3 * k2 + c] += v
+            for c in range(3):
+                ke[3 * p + c, 3 * q + c] += 2.0 * s
 
 
 @njit(**KERNEL)
-def metric_coefficients(bary, wts, et, alpha, F):
+def metric_coefficients(bary, et, beta, alpha, M):
     """alpha (nq, 3, N_DATA): A(U) at point q, components (11, 12, 22), is
-    sum_j alpha[q, c, j] datum_j (module docstring).  F (nq, 3, N_DATA) work."""
-    nq = bary.shape[0]
-    # C_R = A^{-1} E, rows of A: (t0^2, 2 t0 t1, t1^2) (t^T C t = E)
-    a00, a01, a02 = et[0, 0] ** 2, 2 * et[0, 0] * et[0, 1], et[0, 1] ** 2
-    a10, a11, a12 = et[1, 0] ** 2, 2 * et[1, 0] * et[1, 1], et[1, 1] ** 2
-    a20, a21, a22 = et[2, 0] ** 2, 2 * et[2, 0] * et[2, 1], et[2, 1] ** 2
-    det = (a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20)
-           + a02 * (a10 * a21 - a11 * a20))
-    inv = ((a11 * a22 - a12 * a21, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11),
-           (a12 * a20 - a10 * a22, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12),
-           (a10 * a21 - a11 * a20, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10))
-    for q in range(nq):
-        lam = bary[q]
+    sum_j alpha[q, c, j] datum_j (data_forms):
+        A = (1 - beta) R + beta g,
+    R the first-order Regge field (linear, R = sum_m lam_m R_m) with the
+    degrees of freedom of the reduced cubic's metric g, and g itself at the
+    point.  M (N_REGGE, 2 N_REGGE) work: the dofs of the basis fields
+    lam_m e_c (column 3 m + c), inverted by Gauss-Jordan elimination."""
+    n = N_REGGE
+    for r in range(n):
+        for c in range(2 * n):
+            M[r, c] = 0.0
+        M[r, n + r] = 1.0
+    # int_0^1 lam (1, 2s - 1) ds along edge k for its start (lam = 1 - s) and end (s) node
+    for k in range(3):
+        i = (k + 1) % 3
+        j = (k + 2) % 3
+        w = (et[k, 0] * et[k, 0], 2.0 * et[k, 0] * et[k, 1], et[k, 1] * et[k, 1])
+        for c in range(3):
+            M[2 * k, 3 * i + c] = 0.5 * w[c]
+            M[2 * k, 3 * j + c] = 0.5 * w[c]
+            M[2 * k + 1, 3 * i + c] = -w[c] / 6.0
+            M[2 * k + 1, 3 * j + c] = w[c] / 6.0
+    for m in range(3):
+        for c in range(3):
+            M[6 + c, 3 * m + c] = 1.0 / 3.0
+    for col in range(n):
+        piv = col
+        for r in range(col + 1, n):
+            if abs(M[r, col]) > abs(M[piv, col]):
+                piv = r
+        if piv != col:
+            for c in range(2 * n):
+                M[col, c], M[piv, c] = M[piv, c], M[col, c]
+        d = 1.0 / M[col, col]
+        for c in range(2 * n):
+            M[col, c] *= d
+        for r in range(n):
+            if r != col and M[r, col] != 0.0:
+                f = M[r, col]
+                for c in range(2 * n):
+                    M[r, c] -= f * M[col, c]
+    # M[:, n:] is the inverse: field coefficient 3 m + c = sum_j M[3 m + c, n + j] datum_j
+    for q in range(bary.shape[0]):
         for c in range(3):
             for j in range(N_DATA):
-                F[q, c, j] = 0.0
-        for i in range(3):
-            N = lam[i] * (2.0 * lam[i] - 1.0)
-            for c in range(3):
-                F[q, c, 3 * i + c] += N
-        for k in range(3):
-            i = (k + 1) % 3
-            j = (k + 2) % 3
-            N = 4.0 * lam[i] * lam[j]
-            t0, t1 = et[k, 0], et[k, 1]
-            T = (t0 * t0, t0 * t1, t1 * t1)         # t t^T
-            w = (t0 * t0, 2.0 * t0 * t1, t1 * t1)   # t^T X t = w . X
-            # M_k = (C_i + C_j)/2 + (p_k - w.(C_i + C_j)/2) T
-            for c in range(3):
-                for m in (i, j):
-                    F[q, c, 3 * m + c] += 0.5 * N
-                    for c2 in range(3):
-                        F[q, c, 3 * m + c2] -= 0.5 * N * T[c] * w[c2]
-                F[q, c, 12 + k] += N * T[c]
-    for q in range(nq):
-        for c in range(3):
-            for j in range(N_DATA):
+                alpha[q, c, j] = 0.0
+            for j in range(n):
                 s = 0.0
-                for q2 in range(nq):
-                    s += wts[q2] * F[q2, c, j]
-                alpha[q, c, j] = F[q, c, j] - s
-            for k in range(3):
-                alpha[q, c, 9 + k] += inv[c][k] / det
+                for m in range(3):
+                    s += bary[q, m] * M[3 * m + c, n + j]
+                alpha[q, c, j] = (1.0 - beta) * s
+            alpha[q, c, N_REGGE + 3 * q + c] = beta
 
 
 @njit(**KERNEL)
@@ -382,10 +417,9 @@ N_SLOTS = 17
 
 
 @njit(**KERNEL)
-def tangent_map(x, beta, jv, jg, jh, order):
-    """Jets of (m11, m12, m22) (module docstring) at x = (r_1, r_2, Ahat),
-    Ahat = K^T A K, chat = (1 - beta) Ahat + beta c.  Returns False if C or Chat is not
-    positive definite.  order: 0 values, 1 and gradients, 2 and Hessians."""
+def tangent_map(x, jv, jg, jh, order):
+    """Jets of (m11, m12, m22) (module docstring) at x = (r_1, r_2, Chat),
+    Chat = K^T A K.  Returns False if C or Chat is not positive definite.  order: 0 values, 1 and gradients, 2 and Hessians."""
     _jet_dot(x, 0, 0, jv, jg, jh, _C11, order)
     _jet_dot(x, 0, 3, jv, jg, jh, _C12, order)
     _jet_dot(x, 3, 3, jv, jg, jh, _C22, order)
@@ -395,7 +429,6 @@ def tangent_map(x, beta, jv, jg, jh, order):
         jv[o] = x[6 + c]
         if order >= 1:
             jg[o, 6 + c] = 1.0
-        _jet_axpy(1.0 - beta, o, beta, _C11 + c, jv, jg, jh, o, order)
     # det C, det Chat
     _jet_mul(_C11, _C22, jv, jg, jh, _T1, order)
     _jet_mul(_C12, _C12, jv, jg, jh, _T2, order)

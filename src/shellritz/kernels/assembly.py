@@ -18,8 +18,9 @@ import numpy as np
 from numba import njit
 
 from ..discretize.dkt import apply_map, element_chart, gather_element, point_map
-from ..discretize.regge import (BLEND, N_DATA, N_JET, N_SLOTS, N_W, add_data_hessian,
-                                data_gradients, data_maps, data_values, match_reference,
+from ..discretize.regge import (BLEND, MAX_POINTS, N_DATA, N_JET, N_REGGE, N_SLOTS,
+                                add_data_hessian,
+                                data_forms, data_gradients, data_values, match_reference,
                                 metric_coefficients, tangent_curvature, tangent_map,
                                 tangent_vectors)
 from . import KERNEL
@@ -31,7 +32,6 @@ ERR_METRIC = 100        # element-level status (the point kernel's are below)
 ELEMENT_STATUS_TEXT = dict(STATUS_TEXT)
 ELEMENT_STATUS_TEXT[ERR_METRIC] = ("assumed membrane metric not positive definite "
                                    "(discretize/regge.py)")
-MAX_POINTS = 7          # largest quadrature rule (dkt.RULES)
 
 
 @njit(cache=True)
@@ -48,9 +48,9 @@ def _element_work():
 @njit(cache=True)
 def _regge_work():
     """Work arrays of the assumed membrane metric (discretize/regge.py)."""
-    return (np.zeros((N_W, 2)), np.zeros((N_W, 3)),                        # 0 WC, 1 w
-            np.zeros((MAX_POINTS, 3, N_DATA)), np.zeros((MAX_POINTS, 3, N_DATA)),  # 2 alpha, 3 work
-            np.zeros((N_W, 3)), np.zeros(N_DATA), np.zeros((N_DATA, 27)),   # 4 w ref, 5 D(U), 6 grad D
+    return (np.zeros((N_DATA, 9, 9)), np.zeros((9, 9)),                    # 0 forms, 1 gram
+            np.zeros((MAX_POINTS, 3, N_DATA)), np.zeros((N_REGGE, 2 * N_REGGE)),  # 2 alpha, 3 work
+            np.zeros((3, 2)), np.zeros(N_DATA), np.zeros((N_DATA, 27)),     # 4 work, 5 D(U), 6 grad D
             np.zeros(N_SLOTS), np.zeros((N_SLOTS, N_JET)),                  # 7, 8 jets
             np.zeros((N_SLOTS, N_JET, N_JET)),                              # 9 jets
             np.zeros(N_JET), np.zeros(6), np.zeros((6, N_JET)),             # 10 x, 11 rhat, 12 J
@@ -58,14 +58,15 @@ def _regge_work():
             np.zeros((15, N_JET)), np.zeros((15, 3)), np.zeros((3, 3)),     # 16 HJ, 17 H_zA, 18 H_AA
             np.zeros((27, N_DATA)), np.zeros((N_DATA, N_DATA)),             # 19 X, 20 Y
             np.zeros(N_DATA), np.zeros(6), np.zeros((27, 3)),               # 21 gamma, 22 g6, 23 work
-            np.zeros((N_DATA, 27)), np.zeros(N_DATA))                       # 24 work, 25 D(U_ref)
+            np.zeros((N_DATA, 27)), np.zeros(N_DATA),                       # 24 work, 25 D(U_ref)
+            np.zeros((2, 9)), np.zeros(3))                                  # 26, 27 work
 
 
 @njit(**KERNEL)
-def _regge_element_terms(mode, WC, w, gamma, X, Y, dD, XdD, ge, ke):
+def _regge_element_terms(mode, forms, bcur, gamma, X, Y, dD, XdD, ge, ke):
     """Add the terms through the data to ge and the upper triangle of ke:
     ge += sum_j gamma_j dD_j,  ke += X dD + (X dD)^T + dD^T Y dD + sum_j gamma_j d2 D_j."""
-    data_gradients(WC, w, dD)
+    data_gradients(forms, bcur, dD)
     for k in range(9):
         for c in range(3):
             s = 0.0
@@ -87,7 +88,7 @@ def _regge_element_terms(mode, WC, w, gamma, X, Y, dD, XdD, ge, ke):
             for j in range(N_DATA):
                 s += dD[j, p] * XdD[j, q] + X[p, j] * dD[j, q]
             ke[p, q] += s
-    add_data_hessian(WC, gamma, ke)
+    add_data_hessian(forms, gamma, ke)
 
 
 @njit(**KERNEL)
@@ -194,28 +195,28 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
     runs through the element data."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
-    (WC, wv, alpha, Fw, wref, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
-     Xr, Yr, gam, g6, T3, XdD, Dref) = rw
+    (forms, gram, alpha, Mw, P, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
+     Xr, Yr, gam, g6, T3, XdD, Dref, Bc, lamw) = rw
     gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
     area = element_chart(Xe, Te, Q, gl, et, el)
     Le = 0.0
     zero_element(mode, ge, ke)
     beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
-    data_maps(Q, et, el, WC)
-    metric_coefficients(bary, wts, et, alpha, Fw)
+    data_forms(Q, gl, et, el, bary, forms, P, Bc, lamw)
+    metric_coefficients(bary, et, beta, alpha, Mw)
     for j in range(N_DATA):
         gam[j] = 0.0
         for i in range(N_DATA):
             Yr[j, i] = 0.0
         for p in range(27):
             Xr[p, j] = 0.0
-    data_values(WC, bref, wref, Dref)
-    data_values(WC, bcur, wv, D)
+    data_values(forms, bref, gram, Dref)
+    data_values(forms, bcur, gram, D)
     for iq in range(bary.shape[0]):
         w = _point_data(e, iq, bary, wts, area, Q, gl, et, el, b, C, bref, bcur, ref, v, tri, h,
                         G0n, G1n, qp, qm, has_load, G0, G1, dG0, qb, m, dm, gE, gLam, gdg, gna,
                         gkap, gup)
-        # x = (r_1, r_2, Ahat), Ahat = K^T A(U) K (regge.py)
+        # x = (r_1, r_2, Chat), Chat = K^T A(U) K (regge.py)
         if not match_reference(alpha[iq], Dref, ref):
             return np.nan, ERR_METRIC
         for i in range(6):
@@ -225,7 +226,7 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
             for j in range(N_DATA):
                 s += alpha[iq, c, j] * D[j]
             x9[6 + c] = s
-        if not tangent_map(x9, beta, jv, jg, jh, mode):
+        if not tangent_map(x9, jv, jg, jh, mode):
             return np.nan, ERR_METRIC
         tangent_vectors(x9, jv, jg, rhat, Jf, mode)
         for i in range(15):
@@ -240,16 +241,16 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
                          HzA, HAA, T3, Xr, Yr, gam)
         _add_point(mode, w, b, grad, hess, T15, ge, ke)
     if mode >= 1:
-        _regge_element_terms(mode, WC, wv, gam, Xr, Yr, gD, XdD, ge, ke)
+        _regge_element_terms(mode, forms, bcur, gam, Xr, Yr, gD, XdD, ge, ke)
     return Le, OK
 
 
 @njit(**KERNEL)
 def _regge_point(mode, iq, w, b, alpha, x, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ, HzA,
                  HAA, T3, Xr, Yr, gam):
-    """Chain rule through rhat(r_1, r_2, Ahat) at a point: grad, hess (kernel
-    derivatives in vhat) become those in (r_1, r_2, r_ab) with Ahat fixed; the
-    Ahat parts go to gam (gradient), Xr and Yr (Hessian) through the data."""
+    """Chain rule through rhat(r_1, r_2, Chat) at a point: grad, hess (kernel
+    derivatives in vhat) become those in (r_1, r_2, r_ab) with Chat fixed; the
+    Chat parts go to gam (gradient), Xr and Yr (Hessian) through the data."""
     for i in range(6):
         g6[i] = grad[i]
     # gradient: d/dx = Jf^T g6
