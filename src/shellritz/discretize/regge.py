@@ -199,9 +199,10 @@ def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
 def data_values(G, blocks, gram, D):
     """The data D (N_DATA) of the nodal vectors blocks (9, 3); gram (9, 9) work."""
     for p in range(9):
-        for q in range(9):
-            gram[p, q] = (blocks[p, 0] * blocks[q, 0] + blocks[p, 1] * blocks[q, 1]
-                          + blocks[p, 2] * blocks[q, 2])
+        for q in range(p, 9):
+            v = blocks[p, 0] * blocks[q, 0] + blocks[p, 1] * blocks[q, 1] + blocks[p, 2] * blocks[q, 2]
+            gram[p, q] = v
+            gram[q, p] = v
     for j in range(N_DATA):
         s = 0.0
         for p in range(9):
@@ -212,7 +213,7 @@ def data_values(G, blocks, gram, D):
 
 @njit(**KERNEL)
 def data_gradients(G, blocks, dD):
-    """dD (N_DATA, 27): derivatives of the data by the nodal vectors (9 x 3)."""
+    """dD (N_DATA, 27): derivatives of the data by the nodal vectors blocks (9 x 3)."""
     for j in range(N_DATA):
         for p in range(9):
             for c in range(3):
@@ -224,15 +225,13 @@ def data_gradients(G, blocks, dD):
 
 @njit(**KERNEL)
 def add_data_hessian(G, gamma, ke):
-    """Upper triangle of ke (27, 27) += sum_j gamma_j d2 D_j / du2 (= a 9 x 9
-    matrix (x) I3)."""
+    """Upper triangle of ke (27, 27) += sum_j gamma_j d2 D_j / du2 (= 2 sum_j
+    gamma_j G_j (x) I3)."""
     for p in range(9):
         for q in range(p, 9):
             s = 0.0
             for j in range(N_DATA):
                 s += gamma[j] * G[j, p, q]
-            if s == 0.0:
-                continue
             for c in range(3):
                 ke[3 * p + c, 3 * q + c] += 2.0 * s
 

@@ -19,10 +19,9 @@ from numba import njit
 
 from ..discretize.dkt import apply_map, element_chart, gather_element, point_map
 from ..discretize.regge import (BLEND, MAX_POINTS, N_DATA, N_JET, N_REGGE, N_SLOTS,
-                                add_data_hessian,
-                                data_forms, data_gradients, data_values, match_reference,
-                                metric_coefficients, tangent_curvature, tangent_map,
-                                tangent_vectors)
+                                add_data_hessian, data_forms, data_gradients, data_values,
+                                match_reference, metric_coefficients, tangent_curvature,
+                                tangent_map, tangent_vectors)
 from . import KERNEL
 from .parallel import run_chunks
 from .point import OK, STATUS_TEXT, _reference_geometry, new_scratch, point_kernel
@@ -48,47 +47,18 @@ def _element_work():
 @njit(cache=True)
 def _regge_work():
     """Work arrays of the assumed membrane metric (discretize/regge.py)."""
-    return (np.zeros((N_DATA, 9, 9)), np.zeros((9, 9)),                    # 0 forms, 1 gram
+    return (np.zeros((N_DATA, 9, 9)), np.zeros((N_DATA, 27)),              # 0 data forms, 1 their gradients
             np.zeros((MAX_POINTS, 3, N_DATA)), np.zeros((N_REGGE, 2 * N_REGGE)),  # 2 alpha, 3 work
-            np.zeros((3, 2)), np.zeros(N_DATA), np.zeros((N_DATA, 27)),     # 4 work, 5 D(U), 6 grad D
-            np.zeros(N_SLOTS), np.zeros((N_SLOTS, N_JET)),                  # 7, 8 jets
-            np.zeros((N_SLOTS, N_JET, N_JET)),                              # 9 jets
-            np.zeros(N_JET), np.zeros(6), np.zeros((6, N_JET)),             # 10 x, 11 rhat, 12 J
-            np.zeros((N_JET, N_JET)), np.zeros((3, N_JET)), np.zeros(15),   # 13 H9, 14 phi, 15 vhat
-            np.zeros((15, N_JET)), np.zeros((15, 3)), np.zeros((3, 3)),     # 16 HJ, 17 H_zA, 18 H_AA
-            np.zeros((27, N_DATA)), np.zeros((N_DATA, N_DATA)),             # 19 X, 20 Y
-            np.zeros(N_DATA), np.zeros(6), np.zeros((27, 3)),               # 21 gamma, 22 g6, 23 work
-            np.zeros((N_DATA, 27)), np.zeros(N_DATA),                       # 24 work, 25 D(U_ref)
-            np.zeros((2, 9)), np.zeros(3))                                  # 26, 27 work
-
-
-@njit(**KERNEL)
-def _regge_element_terms(mode, forms, bcur, gamma, X, Y, dD, XdD, ge, ke):
-    """Add the terms through the data to ge and the upper triangle of ke:
-    ge += sum_j gamma_j dD_j,  ke += X dD + (X dD)^T + dD^T Y dD + sum_j gamma_j d2 D_j."""
-    data_gradients(forms, bcur, dD)
-    for k in range(9):
-        for c in range(3):
-            s = 0.0
-            for j in range(N_DATA):
-                s += gamma[j] * dD[j, 3 * k + c]
-            ge[k, c] += s
-    if mode < 2:
-        return
-    # XdD[j, q] = (Y dD)[j, q] + X[q, j]  ->  ke[p, q] += dD[:, p] . XdD[:, q] + X[p, :] . dD[:, q]
-    for j in range(N_DATA):
-        for q in range(27):
-            s = X[q, j]
-            for i in range(N_DATA):
-                s += Y[j, i] * dD[i, q]
-            XdD[j, q] = s
-    for p in range(27):
-        for q in range(p, 27):
-            s = 0.0
-            for j in range(N_DATA):
-                s += dD[j, p] * XdD[j, q] + X[p, j] * dD[j, q]
-            ke[p, q] += s
-    add_data_hessian(forms, gamma, ke)
+            np.zeros((3, 2)), np.zeros((9, 9)),                             # 4, 5 work
+            np.zeros(N_DATA), np.zeros(N_DATA),                             # 6, 7 data of U, U_ref
+            np.zeros(N_SLOTS), np.zeros((N_SLOTS, N_JET)),                  # 8, 9 jets
+            np.zeros((N_SLOTS, N_JET, N_JET)),                              # 10 jets
+            np.zeros(N_JET), np.zeros(6), np.zeros((6, N_JET)),             # 11 x, 12 rhat, 13 J
+            np.zeros((N_JET, N_JET)), np.zeros((3, N_JET)), np.zeros(15),   # 14 H9, 15 phi, 16 vhat
+            np.zeros((15, N_JET)), np.zeros((15, 3)), np.zeros((3, 3)),     # 17 HJ, 18 H_zA, 19 H_AA
+            np.zeros((3, 27)), np.zeros((3, 27)), np.zeros(3),              # 20 dChat, 21 work, 22 sA
+            np.zeros(6), np.zeros((27, 3)),                                 # 23 g6, 24 work
+            np.zeros((2, 9)), np.zeros(3), np.zeros(N_DATA))                # 25, 26 work, 27 gamma
 
 
 @njit(**KERNEL)
@@ -191,12 +161,13 @@ def _element(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n,
 def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts, G0n, G1n, qp,
                    qm, has_load, pf, zf, Y1, Y2, ge, ke, sc, wk, rw):
     """_element with the assumed membrane metric of discretize/regge.py: the
-    point kernel receives tangent vectors with that metric, and the chain rule
-    runs through the element data."""
+    point kernel receives tangent vectors with that metric, at each point a
+    combination of the data (quadratic forms of the element's nodal
+    vectors), and the chain rule runs through them."""
     (Xe, Te, Q, gl, et, el, b, C, bref, bcur, ref, v, G0, G1, dG0, qb, m, dm, grad, hess,
      T15, gE, gLam, gdg, gna, gkap, gup) = wk
-    (forms, gram, alpha, Mw, P, D, gD, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA, HAA,
-     Xr, Yr, gam, g6, T3, XdD, Dref, Bc, lamw) = rw
+    (forms, dD, alpha, Mw, P, gram, D, Dref, jv, jg, jh, x9, rhat, Jf, H9, phi, vhat, HJ, HzA,
+     HAA, dC, M3, sA, g6, T3, Bc, lamw, gam) = rw
     gather_element(e, tri, X, T, U, Xe, Te, bref, bcur)
     area = element_chart(Xe, Te, Q, gl, et, el)
     Le = 0.0
@@ -204,19 +175,17 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
     beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
     data_forms(Q, gl, et, el, bary, forms, P, Bc, lamw)
     metric_coefficients(bary, et, beta, alpha, Mw)
-    for j in range(N_DATA):
-        gam[j] = 0.0
-        for i in range(N_DATA):
-            Yr[j, i] = 0.0
-        for p in range(27):
-            Xr[p, j] = 0.0
     data_values(forms, bref, gram, Dref)
     data_values(forms, bcur, gram, D)
+    if mode >= 1:
+        data_gradients(forms, bcur, dD)
+        for j in range(N_DATA):
+            gam[j] = 0.0
     for iq in range(bary.shape[0]):
         w = _point_data(e, iq, bary, wts, area, Q, gl, et, el, b, C, bref, bcur, ref, v, tri, h,
                         G0n, G1n, qp, qm, has_load, G0, G1, dG0, qb, m, dm, gE, gLam, gdg, gna,
                         gkap, gup)
-        # x = (r_1, r_2, Chat), Chat = K^T A(U) K (regge.py)
+        # x = (r_1, r_2, Chat), Chat = K^T A(U) K = alpha[iq] . D (regge.py)
         if not match_reference(alpha[iq], Dref, ref):
             return np.nan, ERR_METRIC
         for i in range(6):
@@ -237,20 +206,25 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
             return np.nan, st
         Le += w * L
         if mode >= 1:
-            _regge_point(mode, iq, w, b, alpha, x9, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ,
-                         HzA, HAA, T3, Xr, Yr, gam)
+            _regge_point(mode, w, b, alpha[iq], dD, x9, jv, jg, jh, Jf, grad, hess, g6, H9, phi,
+                         HJ, HzA, HAA, dC, M3, sA, T3, gam, ge, ke)
         _add_point(mode, w, b, grad, hess, T15, ge, ke)
-    if mode >= 1:
-        _regge_element_terms(mode, forms, bcur, gam, Xr, Yr, gD, XdD, ge, ke)
+    if mode >= 2:
+        add_data_hessian(forms, gam, ke)
     return Le, OK
 
 
 @njit(**KERNEL)
-def _regge_point(mode, iq, w, b, alpha, x, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ, HzA,
-                 HAA, T3, Xr, Yr, gam):
+def _regge_point(mode, w, b, alpha, dD, x, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ, HzA, HAA,
+                 dC, M3, sA, T3, gam, ge, ke):
     """Chain rule through rhat(r_1, r_2, Chat) at a point: grad, hess (kernel
-    derivatives in vhat) become those in (r_1, r_2, r_ab) with Chat fixed; the
-    Chat parts go to gam (gradient), Xr and Yr (Hessian) through the data."""
+    derivatives in vhat) become those in (r_1, r_2, r_ab) with Chat fixed (for
+    _add_point); the terms through Chat = alpha . D (data D, their gradients
+    dD) go to ge and the upper triangle of ke here:
+        ge += w sA . dChat,
+        ke += T3 dChat + dChat^T T3^T + w dChat^T HAA dChat,
+    dChat (3, 27) = alpha dD, sA = dL/dChat, T3 = w (b (x) I3)^T HzA; and
+    sum_c sA_c d2 Chat_c to gam (w sA . alpha: add_data_hessian)."""
     for i in range(6):
         g6[i] = grad[i]
     # gradient: d/dx = Jf^T g6
@@ -261,10 +235,23 @@ def _regge_point(mode, iq, w, b, alpha, x, jv, jg, jh, Jf, grad, hess, g6, H9, p
         if p < 6:
             grad[p] = s
         else:
-            for j in range(N_DATA):
-                gam[j] += w * s * alpha[iq, p - 6, j]
+            sA[p - 6] = s
+    for c in range(3):
+        for q in range(27):
+            dC[c, q] = 0.0
+        for j in range(N_DATA):
+            a = alpha[c, j]
+            if a != 0.0:
+                for q in range(27):
+                    dC[c, q] += a * dD[j, q]
+    for k in range(9):
+        for comp in range(3):
+            ge[k, comp] += w * (sA[0] * dC[0, 3 * k + comp] + sA[1] * dC[1, 3 * k + comp]
+                                + sA[2] * dC[2, 3 * k + comp])
     if mode < 2:
         return
+    for j in range(N_DATA):
+        gam[j] += w * (sA[0] * alpha[0, j] + sA[1] * alpha[1, j] + sA[2] * alpha[2, j])
     # HJ = hess[:, 0:6] Jf (15 x 9); H9 = Jf^T HJ[0:6] + d2(g6 . rhat)/dx2
     for r in range(15):
         for p in range(N_JET):
@@ -291,25 +278,23 @@ def _regge_point(mode, iq, w, b, alpha, x, jv, jg, jh, Jf, grad, hess, g6, H9, p
         for r in range(6, 15):
             hess[p, r] = HJ[r, p]
             hess[r, p] = HJ[r, p]
-    # Xr += w (b (x) I3)^T HzA alpha_q,  Yr += w alpha_q^T HAA alpha_q
+    # T3 = w (b (x) I3)^T HzA (27 x 3), M3 = w HAA dChat (3 x 27)
     for k in range(9):
-        for c in range(3):
-            for m in range(3):
+        for comp in range(3):
+            for c in range(3):
                 s = 0.0
                 for a in range(5):
-                    s += b[a, k] * HzA[3 * a + c, m]
-                T3[3 * k + c, m] = w * s
-    for p in range(27):
-        for j in range(N_DATA):
-            Xr[p, j] += (T3[p, 0] * alpha[iq, 0, j] + T3[p, 1] * alpha[iq, 1, j]
-                         + T3[p, 2] * alpha[iq, 2, j])
+                    s += b[a, k] * HzA[3 * a + comp, c]
+                T3[3 * k + comp, c] = w * s
     for c in range(3):
-        for j in range(N_DATA):
+        for q in range(27):
+            M3[c, q] = w * (HAA[c, 0] * dC[0, q] + HAA[c, 1] * dC[1, q] + HAA[c, 2] * dC[2, q])
+    for p in range(27):
+        for q in range(p, 27):
             s = 0.0
-            for c2 in range(3):
-                s += HAA[c, c2] * alpha[iq, c2, j]
-            for i in range(N_DATA):
-                Yr[i, j] += w * alpha[iq, c, i] * s
+            for c in range(3):
+                s += T3[p, c] * dC[c, q] + dC[c, p] * (T3[q, c] + M3[c, q])
+            ke[p, q] += s
 
 
 @njit(cache=True)
