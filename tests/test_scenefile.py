@@ -61,6 +61,9 @@ def test_invalid_scene_files_name_the_key(text, message):
 @pytest.mark.parametrize("table, message", [
     ("[shell]\nthickness = -0.1", "[shell] thickness: must be > 0, got -0.1"),
     ("[shell]\nthickness = 0.1\nlevel = 'plate'", "[shell] level: unknown level 'plate'"),
+    ("[shell]\nthickness = 0.1\nmembrane = 'cst'", "[shell] membrane: unknown metric 'cst'; choose one of dkt, regge"),
+    ("[shell]\nthickness = 0.1\nmembrane = 'regge'\nquadrature = 3",
+     "[shell] membrane = 'regge' needs quadrature = 6 or 7, got 3"),
     ("[shell]\nthickness = 0.1\n[material]\nlaw = 'rubber'", "unknown law 'rubber'"),
     ("[shell]\nthickness = 0.1\n[material]\nlaw = 'neo-hookean'\nC = 1.0\nnu = 0.7",
      "Poisson ratio nu=0.7 must satisfy -1 < nu < 0.5"),
@@ -70,6 +73,14 @@ def test_non_physical_values_are_rejected(table, message):
     with pytest.raises(SceneError) as exc:
         loads_scene(table)
     assert message in str(exc.value)
+
+
+def test_the_membrane_metric_reaches_the_shell():
+    text = BASE.replace("[shell]\n", "[shell]\nmembrane = 'regge'\n", 1)
+    assert "membrane = 'regge'" in text
+    shell, _ = loads_scene(text).build(surface())
+    assert shell.membrane == "regge"
+    assert scene().build(surface())[0].membrane == "dkt"
 
 
 def test_every_material_law_of_the_package_is_reachable():

@@ -46,7 +46,7 @@ class SceneError(ValueError):
 
 TABLES = {
     "mesh": {"file", "normal"},
-    "shell": {"thickness", "level", "quadrature"},
+    "shell": {"thickness", "level", "quadrature", "membrane"},
     "material": None,            # "law" + the parameters of that law (checked by signature)
     "growth": {"G0", "G1", "stretches", "stretch_gradients", "direction", "abar", "bbar",
                "from_mesh_data"},
@@ -246,6 +246,13 @@ def parse_scene(data, base_dir=".", source="scene"):
         if shell["quadrature"] not in RULES:
             raise SceneError(f"[shell] quadrature: no {shell['quadrature']!r}-point rule; "
                              f"choose one of {sorted(RULES)}")
+    membrane = shell.get("membrane", "dkt")
+    if membrane not in Shell.MEMBRANES:
+        raise SceneError(f"[shell] membrane: unknown metric {membrane!r}; choose one of "
+                         f"{', '.join(Shell.MEMBRANES)}")
+    if membrane == "regge" and shell.get("quadrature", 6) < 6:
+        raise SceneError(f"[shell] membrane = 'regge' needs quadrature = 6 or 7, "
+                         f"got {shell['quadrature']!r}")
     law = _material(data.get("material", {}))
     solver = _solver(data.get("solver", {}))
     _check_output(data.get("output", {}))
@@ -475,7 +482,8 @@ class Scene:
         sh = self.table("shell")
         h = self.thickness(surf.mesh) if thickness is None else thickness
         shell = Shell(surf.mesh, thickness=h, material=self.law,
-                      level=sh.get("level", "consistent"), quadrature=sh.get("quadrature", 6))
+                      level=sh.get("level", "consistent"), quadrature=sh.get("quadrature", 6),
+                      membrane=sh.get("membrane", "dkt"))
         G0, G1, source = self.growth(surf) if growth is None else (*growth, "carried from the input mesh")
         if G0 is not None:
             try:
