@@ -33,11 +33,13 @@ the finest DKT mesh standing in for the converged answer.
 Fine reference (--fine): the membrane-dominated panel at n = 256 for
 t/R = 1e-3 and 1e-4, both metrics (about 10 minutes).  Cost (--cost): the
 energy, gradient and Hessian assembly times of both metrics on one mesh.
+Leaf (--leaf): the default scene (the grown disc buckling into a saddle) at
+16, 32, 64 rings, both metrics: energy and saddle height against the mesh.
 
 Writes bench/results/obstacle.json, obstacle.png, locking.json, locking.png
-(with the machine), hemisphere_large_load.json, locking_fine.json or
-membrane_cost.json.
-Run:  python bench/obstacle.py [--quick] [--large-load] [--fine] [--cost]
+(with the machine), hemisphere_large_load.json, locking_fine.json,
+membrane_cost.json or leaf_membrane.json.
+Run:  python bench/obstacle.py [--quick] [--large-load] [--fine] [--cost] [--leaf]
 (quick: n <= 16 / 32, a few minutes once compiled).
 """
 
@@ -187,6 +189,41 @@ MEMBRANES = ("dkt", "regge")
 THICKNESS = (1e-2, 1e-3, 1e-4)
 
 
+def leaf(rings, membrane):
+    """The default scene (meshes/leaf.toml: a disc grown by 1 + 0.3 rho^2
+    buckles into a saddle, h = 0.02) on shapes.disc(rings) with the given
+    membrane metric, solved as the scene says.  Returns a dict."""
+    from importlib.resources import files
+    from shellritz.meshdata import Surface
+    from shellritz.scenefile import loads_scene
+    text = (files("shellritz.meshes") / "leaf.toml").read_text()
+    scene = loads_scene(text.replace("[shell]\n", f"[shell]\nmembrane = '{membrane}'\n", 1))
+    surf = Surface(shapes.disc(rings))
+    shell = scene.build(surf)[0]
+    t0 = time.perf_counter()
+    res = scene.solve(surf, shell)
+    z = res.r[:, 2]
+    return {"rings": rings, "n_triangles": shell.mesh.n_triangles, "membrane": shell.membrane,
+            "energy": res.energy, "z_max": float(z.max()), "z_min": float(z.min()),
+            "newton_its": len(res.history.iterations), "stable": res.history.stable,
+            "converged": res.converged, "wall_s": time.perf_counter() - t0}
+
+
+def leaf_study():
+    """bench/results/leaf_membrane.json: the default leaf's energy and saddle
+    height against the mesh, both metrics."""
+    rows = []
+    for rings in (16, 32, 64):
+        for membrane in MEMBRANES:
+            rows.append(leaf(rings, membrane))
+            r = rows[-1]
+            print(f"leaf {rings:3d} rings ({r['n_triangles']:6d} triangles) {membrane:5s}: "
+                  f"energy {r['energy']:.5g}, z {r['z_min']:.5f} / {r['z_max']:.5f}, "
+                  f"{r['newton_its']} Newton, stable {r['stable']}, {r['wall_s']:.1f} s", flush=True)
+    out = {"machine": machine_info(), "rows": rows}
+    (RESULTS / "leaf_membrane.json").write_text(json.dumps(out, indent=2))
+
+
 def membrane_cost(rings=40, repeats=5):
     """bench/results/membrane_cost.json: the energy, gradient and Hessian
     assembly of both metrics on the same mesh (a disc of `rings` rings,
@@ -229,10 +266,14 @@ def main():
                     help="only the membrane-dominated panel at n = 256 (both metrics)")
     ap.add_argument("--cost", action="store_true",
                     help="only the assembly time of both metrics on one mesh")
+    ap.add_argument("--leaf", action="store_true",
+                    help="only the default leaf at 16, 32, 64 rings (both metrics)")
     args = ap.parse_args()
     RESULTS.mkdir(exist_ok=True)
     if args.cost:
         return membrane_cost()
+    if args.leaf:
+        return leaf_study()
     if args.large_load:
         return large_load(args.quick)
     if args.fine:
