@@ -195,11 +195,10 @@ def leaf(rings, membrane):
     membrane metric, solved as the scene says.  Returns a dict."""
     from importlib.resources import files
     from shellritz.meshdata import Surface
-    from shellritz.scenefile import loads_scene
-    text = (files("shellritz.meshes") / "leaf.toml").read_text()
-    scene = loads_scene(text.replace("[shell]\n", f"[shell]\nmembrane = '{membrane}'\n", 1))
+    from shellritz.scenefile import load_scene
+    scene = load_scene(files("shellritz.meshes") / "leaf.toml")
     surf = Surface(shapes.disc(rings))
-    shell = scene.build(surf)[0]
+    shell = scene.build(surf, membrane=membrane)[0]
     t0 = time.perf_counter()
     res = scene.solve(surf, shell)
     z = res.r[:, 2]

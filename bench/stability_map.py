@@ -26,7 +26,11 @@ bench/results/stability_map.json (rows ``scene``, ``config``, ``converged``,
 ``newton_its``, ``krylov_its``, ``wall_s``, ``energy``, ``stable`` and more;
 the machine) and bench/results/stability_map.png.
 
-Run:  python bench/stability_map.py [--quick] [--threads 2] [--repeat 3]
+With ``--membrane regge`` the triangle scenes use the locking-free membrane
+metric (README, Membrane locking; the snapping cap, a 1D scene, is the
+same): bench/results/stability_map_regge.json and .png.
+
+Run:  python bench/stability_map.py [--quick] [--threads 2] [--repeat 3] [--membrane regge]
 """
 
 import argparse
@@ -60,11 +64,13 @@ SCENES = {
 }
 
 
-def build(scene, size):
+def build(scene, size, membrane="dkt"):
     from shellritz import benchmark_scenes, scenes
-    name = SCENES[scene][0]
+    name, kind = SCENES[scene][:2]
     module = scenes if name == "leaf" else benchmark_scenes
-    return getattr(module, name)(size)
+    if kind == "line":
+        return getattr(module, name)(size)
+    return getattr(module, name)(size, membrane=membrane)
 
 
 def direct_method():
@@ -89,7 +95,7 @@ def warm_up(kind, linear):
                                         linear=linear if linear != "amg" else direct_method())
 
 
-def run_one(scene, config, size, repeat=1):
+def run_one(scene, config, size, repeat=1, membrane="dkt"):
     """Solve ``scene`` at ``size`` with ``config`` (in this process): the
     row of the map.  wall_s is the median over ``repeat`` solves; the other
     entries are those of the last."""
@@ -99,7 +105,7 @@ def run_one(scene, config, size, repeat=1):
     warm_up(kind, opts["linear"])
     walls = []
     for _ in range(repeat):
-        eng = build(scene, size)
+        eng = build(scene, size, membrane)
         error = None
         t0 = time.perf_counter()
         try:
@@ -114,6 +120,7 @@ def run_one(scene, config, size, repeat=1):
     energy = getattr(res, "energy", None) if res is not None else None
     return {
         "scene": scene, "config": config, "size": size,
+        "membrane": getattr(eng, "membrane", None),
         "globalization": opts["globalization"], "linear": opts["linear"],
         "linear_used": history.linear if history is not None else None,
         "dofs": len(eng.free) if hasattr(eng, "free") else None,
@@ -135,13 +142,14 @@ def run_one(scene, config, size, repeat=1):
     }
 
 
-def run_isolated(scene, config, size, repeat, threads, time_limit):
+def run_isolated(scene, config, size, repeat, threads, time_limit, membrane="dkt"):
     """run_one in a fresh process with a time limit (per solve, plus two
     minutes for the start and the warm-up); a crash or the limit gives a
     failed row."""
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS=str(threads),
                MKL_NUM_THREADS=str(threads), OPENBLAS_NUM_THREADS=str(threads))
-    cmd = [sys.executable, __file__, "--one", scene, config, "--size", str(size), "--repeat", str(repeat)]
+    cmd = [sys.executable, __file__, "--one", scene, config, "--size", str(size), "--repeat", str(repeat),
+           "--membrane", membrane]
     base = {"scene": scene, "config": config, "size": size, "converged": False, "newton_its": None,
             "krylov_its": None, "energy": None, "stable": None}
     t0 = time.perf_counter()
@@ -177,24 +185,27 @@ def main():
     ap.add_argument("--time-limit", type=float, default=None, help="seconds per solve (default 900, quick 300)")
     ap.add_argument("--scenes", nargs="*", default=list(SCENES), choices=list(SCENES))
     ap.add_argument("--chart", action="store_true", help="only redraw the chart from the JSON")
+    ap.add_argument("--membrane", choices=("dkt", "regge"), default="dkt",
+                    help="membrane metric of the triangle scenes (regge: written to stability_map_regge.*)")
     ap.add_argument("--one", nargs=2, metavar=("SCENE", "CONFIG"), help=argparse.SUPPRESS)
     ap.add_argument("--size", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     repeat = args.repeat or (1 if args.quick else 3)
     if args.one:
-        print(json.dumps(run_one(*args.one, args.size, repeat)), flush=True)
+        print(json.dumps(run_one(*args.one, args.size, repeat, args.membrane)), flush=True)
         return
-    name = "stability_map_quick" if args.quick else "stability_map"
+    name = ("stability_map_quick" if args.quick else "stability_map") + (
+        "_regge" if args.membrane == "regge" else "")
     if args.chart:
         chart(json.loads((RESULTS / f"{name}.json").read_text()), RESULTS / f"{name}.png")
         return
     limit = args.time_limit or (300.0 if args.quick else 900.0)
     out = {"machine": machine(args.threads), "quick": args.quick, "repeat": repeat, "time_limit_s": limit,
-           "configs": CONFIGS, "rows": []}
+           "membrane": args.membrane, "configs": CONFIGS, "rows": []}
     for scene in args.scenes:
         size = SCENES[scene][3 if args.quick else 4]
         for config in CONFIGS:
-            row = run_isolated(scene, config, size, repeat, args.threads, limit)
+            row = run_isolated(scene, config, size, repeat, args.threads, limit, args.membrane)
             run_machine = row.pop("machine", None)
             if run_machine and out["machine"].get("numba_threading_layer") is None:
                 out["machine"].update(run_machine)       # as the runs saw it (threads, layer)

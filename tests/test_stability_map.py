@@ -55,3 +55,19 @@ def test_configurations_reach_the_same_equilibrium(rows, scene):
     ends on another stable state, 0.27 % higher in energy."""
     E = np.array([_row(rows, scene, c)["energy"] for c in smap.CONFIGS])
     assert np.all(np.abs(E / E[0] - 1) < 1e-9)
+
+
+REGGE = [(s, c) for s in TINY if s != "snapping cap" for c in smap.CONFIGS]
+
+
+@pytest.mark.parametrize("scene,config", REGGE)
+def test_configuration_succeeds_with_the_regge_metric(scene, config):
+    """The triangle scenes with membrane="regge" (bench/stability_map.py
+    --membrane regge): every configuration converges, the direct ones (and
+    AMG falling back to them) to stable states."""
+    r = smap.run_one(scene, config, TINY[scene], membrane="regge")
+    assert r["membrane"] == "regge"
+    assert r["converged"], r["error"]
+    assert r["t_reached"] == 1.0 and r["newton_its"] > 0
+    if config.endswith("/direct") or r["linear_used"].startswith("amg->"):
+        assert r["stable"] is True and r["unstable_modes"] == 0

@@ -93,7 +93,7 @@ def _cylinder_points(R, L):
     return np.array([[0.0, R, 0.0], [R, 0.0, 0.0], [R, 0.0, L / 2]])
 
 
-def pulled_cylinder(n_theta=8, n_z=None, level="consistent"):
+def pulled_cylinder(n_theta=8, n_z=None, level="consistent", membrane="dkt"):
     """Pull-out of an open-ended cylindrical shell (Sze, Liu & Lo 2004,
     section 3.5): radius R = 4.953, length L = 10.35, thickness h = 0.094,
     E = 10.5e6, nu = 0.3125 (Saint Venant-Kirchhoff), ends free, two
@@ -112,7 +112,8 @@ def pulled_cylinder(n_theta=8, n_z=None, level="consistent"):
     d = PULLED_CYLINDER
     n_z = n_theta if n_z is None else n_z
     mesh = shapes.cylinder(n_theta, n_z, radius=d["R"], length=d["L"] / 2, theta=(0.0, np.pi / 2))
-    shell = Shell(mesh, d["h"], StVenantKirchhoff.from_young(d["E"], d["nu"]), level=level)
+    shell = Shell(mesh, d["h"], StVenantKirchhoff.from_young(d["E"], d["nu"]), level=level,
+                  membrane=membrane)
     shell.symmetry("x", 0.0).symmetry("y", 0.0).symmetry("z", 0.0)
     a = _nearest(mesh.vertices, _cylinder_points(d["R"], d["L"])[0])
     shell.point_force([a], [0.0, d["P"] / 4, 0.0])
@@ -140,7 +141,7 @@ def _bending_stiffness(h, nu):
     return 2.0 * (1.0 + nu) * h ** 3 / (12.0 * (1.0 - nu ** 2))
 
 
-def thin_panel(n=8, h=1e-3, load=40.0, nu=0.3, level="consistent"):
+def thin_panel(n=8, h=1e-3, load=40.0, nu=0.3, level="consistent", membrane="dkt"):
     """Cylindrical panel (radius 1, opening +-40 degrees, length 2 along z,
     the panel of bench/obstacle.py's locking study), thickness h, clamped
     along the generator at -40 degrees, under a dead load normal to the
@@ -152,14 +153,14 @@ def thin_panel(n=8, h=1e-3, load=40.0, nu=0.3, level="consistent"):
     """
     span = np.radians(40.0)
     mesh = shapes.cylinder(n, n, radius=1.0, length=2.0, theta=(-span, span))
-    shell = Shell(mesh, h, NeoHookean(1.0, nu=nu), level=level)
+    shell = Shell(mesh, h, NeoHookean(1.0, nu=nu), level=level, membrane=membrane)
     shell.clamp(mesh.nodes_where(lambda X: np.abs(np.arctan2(X[:, 1], X[:, 0]) + span) < 1e-9))
     q = load * _bending_stiffness(h, nu) / (2 * span) ** 3
     shell.face_tractions(q_plus=lambda X, N: -0.5 * q * N, q_minus=lambda X, N: -0.5 * q * N)
     return shell
 
 
-def inflated_disc(rings=6, h=0.02, nu=0.499, pressure=0.02, level="consistent"):
+def inflated_disc(rings=6, h=0.02, nu=0.499, pressure=0.02, level="consistent", membrane="dkt"):
     """Flat disc of radius 1 (``shapes.disc(rings)``), thickness h,
     neo-Hookean with shear modulus 1 and Poisson's ratio nu (0.499: nearly
     incompressible: the law's D/C = 2 nu / (1 - 2 nu) = 499), clamped at the
@@ -167,13 +168,14 @@ def inflated_disc(rings=6, h=0.02, nu=0.499, pressure=0.02, level="consistent"):
     ramped to ``pressure``; the default lifts the centre by 0.51 (measured,
     6 rings)."""
     mesh = shapes.disc(rings)
-    shell = Shell(mesh, h, NeoHookean(1.0, nu=nu), level=level)
+    shell = Shell(mesh, h, NeoHookean(1.0, nu=nu), level=level, membrane=membrane)
     shell.clamp(mesh.boundary_nodes())
     shell.pressure(pressure)
     return shell
 
 
-def grown_strip(n=16, stretch=2.0, h=0.01, width=0.1, nu=0.3, level="consistent"):
+def grown_strip(n=16, stretch=2.0, h=0.01, width=0.1, nu=0.3, level="consistent",
+                membrane="dkt"):
     """Strip [0, 1] x [0, width] (n x 2 grid cells), thickness h,
     neo-Hookean (shear modulus 1), clamped at both ends x = 0 and x = 1, grown
     along its length by ``stretch`` (G0 = diag(stretch, 1, 1), ramped from
@@ -182,7 +184,7 @@ def grown_strip(n=16, stretch=2.0, h=0.01, width=0.1, nu=0.3, level="consistent"
     16 cells).  An upward dead load of 1e-3 D per unit area (D the bending
     stiffness) picks the side."""
     mesh = shapes.rectangle(n, 2, lx=1.0, ly=width)
-    shell = Shell(mesh, h, NeoHookean(1.0, nu=nu), level=level)
+    shell = Shell(mesh, h, NeoHookean(1.0, nu=nu), level=level, membrane=membrane)
     shell.set_growth(G0=np.diag([stretch, 1.0, 1.0]))
     shell.clamp(mesh.nodes_where(lambda X: (X[:, 0] < 1e-9) | (X[:, 0] > 1 - 1e-9)))
     q = 0.5e-3 * _bending_stiffness(h, nu)

@@ -475,15 +475,16 @@ class Scene:
             return th["relative"] * float(np.ptp(mesh.vertices, axis=0).max())
         return float(th)
 
-    def build(self, surf, growth=None, thickness=None):
+    def build(self, surf, growth=None, thickness=None, membrane=None):
         """The Shell of this scene on a surface (checks the arrays); returns
         (shell, description of the growth source).  growth: (G0, G1) nodal
-        arrays, thickness: a number, instead of the scene's (coarse levels)."""
+        arrays, thickness: a number (coarse levels), membrane: a metric name,
+        instead of the scene's."""
         sh = self.table("shell")
         h = self.thickness(surf.mesh) if thickness is None else thickness
         shell = Shell(surf.mesh, thickness=h, material=self.law,
                       level=sh.get("level", "consistent"), quadrature=sh.get("quadrature", 6),
-                      membrane=sh.get("membrane", "dkt"))
+                      membrane=sh.get("membrane", "dkt") if membrane is None else membrane)
         G0, G1, source = self.growth(surf) if growth is None else (*growth, "carried from the input mesh")
         if G0 is not None:
             try:

@@ -232,20 +232,21 @@ class StripScene(_Scene):
         return res, len(sh.free), X[on, 0], res.r[on, 0], res.r[on, 2], len(res.history.iterations)
 
 
-def leaf(rings=None, thickness=None):
+def leaf(rings=None, thickness=None, membrane=None):
     """The default scene (``shellritz``, the scene file ``meshes/leaf.toml``):
     a growing leaf — a flat disc of radius 1 grown in its plane by
     ``1 + 0.3 rho^2`` buckles into a saddle.  ``rings=None``: the file's mesh
     (16 rings, 1 536 triangles); else the same scene on ``shapes.disc(rings)``
     (about 6 rings^2 triangles; benchmarks).  ``thickness``: instead of the
-    file's 0.02 (same units as the disc's radius 1).  Returns the Shell,
-    ready to solve."""
+    file's 0.02 (same units as the disc's radius 1); ``membrane``: the
+    membrane metric instead of the file's ("dkt" | "regge", Shell).  Returns
+    the Shell, ready to solve."""
     from importlib.resources import files
     from .meshdata import Surface
     from .scenefile import load_scene
     scene = load_scene(files("shellritz.meshes") / "leaf.toml")
     surf = scene.read() if rings is None else Surface(shapes.disc(int(rings)))
-    return scene.build(surf, thickness=thickness)[0]
+    return scene.build(surf, thickness=thickness, membrane=membrane)[0]
 
 
 def invagination(thickness=0.1, nu=0.4, compression=0.4, extension=0.2, gradient=-1.0,
