@@ -158,9 +158,10 @@ def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
     P[1, 1] = el[2] * et[2, 1]
     P[2, 0] = -el[1] * et[1, 0]
     P[2, 1] = -el[1] * et[1, 1]
-    for j in range(N_DATA):
+    # upper triangles (p <= q), mirrored at the end
+    for j in range(N_REGGE):
         for p in range(9):
-            for q in range(9):
+            for q in range(p, 9):
                 G[j, p, q] = 0.0
     for k in range(3):
         i = (k + 1) % 3
@@ -172,19 +173,22 @@ def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
             lam[i] = 1.0 - s
             lam[jn] = s
             cubic_gradient(lam, Q, gl, P, Bc)
-            for m in range(2):
-                wq = EDGE_W[g] * (1.0 if m == 0 else 2.0 * s - 1.0)
-                for p in range(9):
-                    vp = t0 * Bc[0, p] + t1 * Bc[1, p]
-                    for q in range(9):
-                        G[2 * k + m, p, q] += wq * vp * (t0 * Bc[0, q] + t1 * Bc[1, q])
+            for p in range(9):          # Bc[0] now holds the tangential derivative t . Bc
+                Bc[0, p] = t0 * Bc[0, p] + t1 * Bc[1, p]
+            w0 = EDGE_W[g]
+            w1 = EDGE_W[g] * (2.0 * s - 1.0)
+            for p in range(9):
+                for q in range(p, 9):
+                    v = Bc[0, p] * Bc[0, q]
+                    G[2 * k, p, q] += w0 * v
+                    G[2 * k + 1, p, q] += w1 * v
     for g in range(INT_W.shape[0]):
         for c in range(3):
             lam[c] = INT_BARY[g, c]
         cubic_gradient(lam, Q, gl, P, Bc)
         wq = INT_W[g]
         for p in range(9):
-            for q in range(9):
+            for q in range(p, 9):
                 G[6, p, q] += wq * Bc[0, p] * Bc[0, q]
                 G[7, p, q] += 0.5 * wq * (Bc[0, p] * Bc[1, q] + Bc[1, p] * Bc[0, q])
                 G[8, p, q] += wq * Bc[1, p] * Bc[1, q]
@@ -192,32 +196,38 @@ def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
         cubic_gradient(bary[g], Q, gl, P, Bc)
         j = N_REGGE + 3 * g
         for p in range(9):
-            for q in range(9):
+            for q in range(p, 9):
                 G[j, p, q] = Bc[0, p] * Bc[0, q]
                 G[j + 1, p, q] = 0.5 * (Bc[0, p] * Bc[1, q] + Bc[1, p] * Bc[0, q])
                 G[j + 2, p, q] = Bc[1, p] * Bc[1, q]
+    for j in range(N_REGGE + 3 * bary.shape[0]):
+        for p in range(9):
+            for q in range(p + 1, 9):
+                G[j, q, p] = G[j, p, q]
 
 
 @njit(**KERNEL)
-def data_values(G, blocks, gram, D):
-    """The data D (N_DATA) of the nodal vectors blocks (9, 3); gram (9, 9) work."""
+def data_values(G, nd, blocks, gram, D):
+    """The data D[:nd] of the nodal vectors blocks (9, 3) (nd = N_REGGE + 3
+    points: the others are not used); gram (9, 9) work."""
     for p in range(9):
         for q in range(p, 9):
             v = blocks[p, 0] * blocks[q, 0] + blocks[p, 1] * blocks[q, 1] + blocks[p, 2] * blocks[q, 2]
             gram[p, q] = v
             gram[q, p] = v
-    for j in range(N_DATA):
+    for j in range(nd):
         s = 0.0
         for p in range(9):
-            for q in range(9):
+            s += 0.5 * G[j, p, p] * gram[p, p]
+            for q in range(p + 1, 9):
                 s += G[j, p, q] * gram[p, q]
-        D[j] = s
+        D[j] = 2.0 * s          # G and gram symmetric
 
 
 @njit(**KERNEL)
-def data_gradients(G, blocks, dD):
-    """dD (N_DATA, 27): derivatives of the data by the nodal vectors blocks (9 x 3)."""
-    for j in range(N_DATA):
+def data_gradients(G, nd, blocks, dD):
+    """dD[:nd] (27 each): derivatives of the data by the nodal vectors blocks (9 x 3)."""
+    for j in range(nd):
         for p in range(9):
             for c in range(3):
                 s = 0.0
@@ -227,13 +237,13 @@ def data_gradients(G, blocks, dD):
 
 
 @njit(**KERNEL)
-def add_data_hessian(G, gamma, ke):
-    """Upper triangle of ke (27, 27) += sum_j gamma_j d2 D_j / du2 (= 2 sum_j
-    gamma_j G_j (x) I3)."""
+def add_data_hessian(G, nd, gamma, ke):
+    """Upper triangle of ke (27, 27) += sum_{j < nd} gamma_j d2 D_j / du2 (= 2
+    sum_j gamma_j G_j (x) I3)."""
     for p in range(9):
         for q in range(p, 9):
             s = 0.0
-            for j in range(N_DATA):
+            for j in range(nd):
                 s += gamma[j] * G[j, p, q]
             for c in range(3):
                 ke[3 * p + c, 3 * q + c] += 2.0 * s

@@ -175,10 +175,11 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
     beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
     data_forms(Q, gl, et, el, bary, forms, P, Bc, lamw)
     metric_coefficients(bary, et, beta, alpha, Mw)
-    data_values(forms, bref, gram, Dref)
-    data_values(forms, bcur, gram, D)
+    nd = N_REGGE + 3 * bary.shape[0]      # the data in use (regge.data_forms)
+    data_values(forms, nd, bref, gram, Dref)
+    data_values(forms, nd, bcur, gram, D)
     if mode >= 1:
-        data_gradients(forms, bcur, dD)
+        data_gradients(forms, nd, bcur, dD)
         for j in range(N_DATA):
             gam[j] = 0.0
     for iq in range(bary.shape[0]):
@@ -207,24 +208,30 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
         Le += w * L
         if mode >= 1:
             _regge_point(mode, w, b, alpha[iq], dD, x9, jv, jg, jh, Jf, grad, hess, g6, H9, phi,
-                         HJ, HzA, HAA, dC, M3, sA, T3, gam, ge, ke)
+                         HJ, HzA, HAA, dC, M3, sA, T3, gam, ke)
         _add_point(mode, w, b, grad, hess, T15, ge, ke)
+    if mode >= 1:
+        for k in range(9):
+            for comp in range(3):
+                v2 = 0.0
+                for j in range(nd):
+                    v2 += gam[j] * dD[j, 3 * k + comp]
+                ge[k, comp] += v2
     if mode >= 2:
-        add_data_hessian(forms, gam, ke)
+        add_data_hessian(forms, nd, gam, ke)
     return Le, OK
 
 
 @njit(**KERNEL)
 def _regge_point(mode, w, b, alpha, dD, x, jv, jg, jh, Jf, grad, hess, g6, H9, phi, HJ, HzA, HAA,
-                 dC, M3, sA, T3, gam, ge, ke):
+                 dC, M3, sA, T3, gam, ke):
     """Chain rule through rhat(r_1, r_2, Chat) at a point: grad, hess (kernel
     derivatives in vhat) become those in (r_1, r_2, r_ab) with Chat fixed (for
     _add_point); the terms through Chat = alpha . D (data D, their gradients
-    dD) go to ge and the upper triangle of ke here:
-        ge += w sA . dChat,
-        ke += T3 dChat + dChat^T T3^T + w dChat^T HAA dChat,
-    dChat (3, 27) = alpha dD, sA = dL/dChat, T3 = w (b (x) I3)^T HzA; and
-    sum_c sA_c d2 Chat_c to gam (w sA . alpha: add_data_hessian)."""
+    dD): gam += w sA . alpha (sA = dL/dChat; the element adds gam . dD to
+    ge and gam . d2D to ke), and to the upper triangle of ke
+        T3 dChat + dChat^T T3^T + w dChat^T HAA dChat,
+    dChat (3, 27) = alpha dD, T3 = w (b (x) I3)^T HzA."""
     for i in range(6):
         g6[i] = grad[i]
     # gradient: d/dx = Jf^T g6
@@ -236,6 +243,10 @@ def _regge_point(mode, w, b, alpha, dD, x, jv, jg, jh, Jf, grad, hess, g6, H9, p
             grad[p] = s
         else:
             sA[p - 6] = s
+    for j in range(N_DATA):
+        gam[j] += w * (sA[0] * alpha[0, j] + sA[1] * alpha[1, j] + sA[2] * alpha[2, j])
+    if mode < 2:
+        return
     for c in range(3):
         for q in range(27):
             dC[c, q] = 0.0
@@ -244,14 +255,6 @@ def _regge_point(mode, w, b, alpha, dD, x, jv, jg, jh, Jf, grad, hess, g6, H9, p
             if a != 0.0:
                 for q in range(27):
                     dC[c, q] += a * dD[j, q]
-    for k in range(9):
-        for comp in range(3):
-            ge[k, comp] += w * (sA[0] * dC[0, 3 * k + comp] + sA[1] * dC[1, 3 * k + comp]
-                                + sA[2] * dC[2, 3 * k + comp])
-    if mode < 2:
-        return
-    for j in range(N_DATA):
-        gam[j] += w * (sA[0] * alpha[0, j] + sA[1] * alpha[1, j] + sA[2] * alpha[2, j])
     # HJ = hess[:, 0:6] Jf (15 x 9); H9 = Jf^T HJ[0:6] + d2(g6 . rhat)/dx2
     for r in range(15):
         for p in range(N_JET):
