@@ -24,6 +24,10 @@ solves the scene and times one Hessian assembly at the solution (the unit
 of cost: the whole solve in Hessian assemblies is a ratio that transfers
 between machines), and reports its peak resident memory.
 
+With --membrane regge the leaf uses the locking-free membrane metric
+(README, Membrane locking): rows in bench/results/scaling_regge.json, logs
+with a _regge suffix.
+
 With --repeats N each size and method runs in N fresh processes: the row
 of the median wall time is kept (all walls in wall_runs_s), with the median
 of the N ratios solve / assembly (each of one process) as
@@ -97,6 +101,8 @@ TIME_LIMIT_S = 1200
 # the leaf's thickness (meshes/leaf.toml); --thickness runs the scene thinner
 # (rows carry "thickness"; rows without it were measured at this one)
 LEAF_THICKNESS = 0.02
+# the membrane metric of the leaf (--membrane; "dkt": the scene file's)
+MEMBRANE = "dkt"
 
 CHILD = r"""
 import json, resource, sys, time
@@ -109,25 +115,27 @@ rings, solver, rtol = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
 coarser = [int(k) for k in sys.argv[4].split(",") if k]
 thickness = float(sys.argv[5])
 path = [float(v) for v in sys.argv[6].split(",") if v] or None    # thickness_path of the first solve
+membrane = sys.argv[7]
 first = {} if path is None else {"thickness_path": path}
-leaf_h = lambda k: leaf(k, thickness=thickness)
+leaf_h = lambda k: leaf(k, thickness=thickness, membrane=membrane)
 linear = solver.split("-")[0]
 kernels_s, compiled = prepare_kernels()
 t = time.perf_counter()
-leaf(4).solve(verbose=False, linear=linear)
+leaf(4, membrane=membrane).solve(verbose=False, linear=linear)
 # kernels the tiny leaf does not reach, compiled on their first use (after a
 # cache wipe: inside the timed span): the strain-gradient term (elements
 # shorter than h) and a multilevel AMG hierarchy's set-up and smoother
 import shellritz.linalg as linalg
 one_level, linalg.AMG_ONE_LEVEL_BLOCKS = linalg.AMG_ONE_LEVEL_BLOCKS, 0
 try:
-    leaf(10, thickness=0.5).solve(verbose=False, linear="amg")
+    leaf(10, thickness=0.5, membrane=membrane).solve(verbose=False, linear="amg")
 except SolveError:
     pass
 linalg.AMG_ONE_LEVEL_BLOCKS = one_level
 warm_s = time.perf_counter() - t
 shell = leaf_h(rings)
 row = dict(rings=rings, n_triangles=int(len(shell.mesh.triangles)), solver=solver, thickness=thickness,
+           membrane=membrane,
            kernels_s=kernels_s, kernels_compiled=compiled, warmup_s=warm_s, nested_levels=[],
            **({} if path is None else {"thickness_path": path}))
 t, usage = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF)
@@ -140,7 +148,8 @@ try:
         from shellritz.scenefile import load_scene
         scene = load_scene(files("shellritz.meshes") / "leaf.toml")
         mesh, shell = shell.mesh, None       # solve_nested builds the scene on the mesh: one Shell
-        res = solve_nested(lambda mesh: scene.build(Surface(mesh), thickness=thickness)[0], mesh, verbose=True,
+        res = solve_nested(lambda mesh: scene.build(Surface(mesh), thickness=thickness, membrane=membrane)[0],
+                           mesh, verbose=True,
                            linear=linear, rtol=rtol, **first)
         shell = res.shell
         row["nested_levels"] = res.history.nested
@@ -232,6 +241,7 @@ def keep_log(rings, solver, thickness, path, text):
     bench/results/logs/: what a run that failed or timed out got through."""
     h = "" if thickness == LEAF_THICKNESS else f"_h{thickness:g}"
     h += "".join(f"_from{v:g}" for v in path)
+    h += "" if MEMBRANE == "dkt" else f"_{MEMBRANE}"
     log = RESULTS / "logs" / f"scaling_{rings}_{solver}{h}.log"
     log.parent.mkdir(exist_ok=True)
     log.write_text(text)
@@ -254,7 +264,8 @@ def run(rings, solver, time_limit, thickness, path=()):
     peak_before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20
     try:
         p = subprocess.run([sys.executable, "-c", CHILD, str(rings), solver, str(RTOL),
-                            ",".join(map(str, coarser)), str(thickness), ",".join(map(str, path))],
+                            ",".join(map(str, coarser)), str(thickness), ",".join(map(str, path)),
+                            MEMBRANE],
                            env=env,
                            capture_output=True, text=True, timeout=time_limit)
     except subprocess.TimeoutExpired as exc:
@@ -329,17 +340,23 @@ def main():
     ap.add_argument("--quick", action="store_true", help="rings 8 and 16")
     ap.add_argument("--repeats", type=int, default=1,
                     help="fresh processes per size and method; the row of the median wall time is kept")
-    ap.add_argument("--out", default=str(RESULTS / "scaling.json"))
     ap.add_argument("--thickness", type=float, default=LEAF_THICKNESS,
                     help="the leaf's thickness (disc radius 1; the scene file's: 0.02)")
     ap.add_argument("--thickness-path", default="",
                     help="comma-separated larger thicknesses the first solve passes through "
                          "(Shell.solve(thickness_path=...)), e.g. 0.02,0.01")
+    ap.add_argument("--membrane", choices=("dkt", "regge"), default="dkt",
+                    help="the leaf's membrane metric (regge: written to scaling_regge.json unless --out)")
+    ap.add_argument("--out", default=None)
     ap.add_argument("--redo", action="store_true",
                     help="rerun the sizes and methods the file already has (else they are skipped)")
     args = ap.parse_args()
+    global MEMBRANE
+    MEMBRANE = args.membrane
+    suffix = "" if MEMBRANE == "dkt" else f"_{MEMBRANE}"
     rings = [8, 16] if args.quick else args.rings
-    out = Path(args.out if not args.quick else RESULTS / "scaling_quick.json")
+    out = Path(args.out or RESULTS / f"scaling{suffix}.json") if not args.quick else \
+        RESULTS / f"scaling_quick{suffix}.json"
     rows = json.loads(out.read_text())["rows"] if out.exists() and not args.quick else []
     h = args.thickness
     path = tuple(float(v) for v in args.thickness_path.split(",") if v)
