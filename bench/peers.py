@@ -54,8 +54,9 @@ ParallelUtilities.SetNumThreads; the values in effect are recorded.
 
 Rows carry wall_over_kratos (wall time / Kratos' in the same run).
 Writes bench/results/peers.json and peers.png (--quick: one repeat on
-meshes of 64 and 256 triangles, peers_quick.*).
-Run:  pip install -e '.[peers]' && python bench/peers.py [--repeats 3] [--quick]
+meshes of 64 and 256 triangles, peers_quick.*; --membrane regge: shellritz
+with the locking-free membrane metric, peers_regge.*).
+Run:  pip install -e '.[peers]' && python bench/peers.py [--repeats 3] [--quick] [--membrane regge]
 """
 
 import os
@@ -125,11 +126,11 @@ def tip_forces(mesh, tip):
 
 
 # ------------------------------------------------------------------ shellritz
-def run_shellritz(mesh, clamped, tip, adaptive=False):
+def run_shellritz(mesh, clamped, tip, adaptive=False, membrane="dkt"):
     """10 equal load steps (the protocol), or adaptive ones from 10."""
     from shellritz import Shell, StVenantKirchhoff
     t0, c0 = time.perf_counter(), time.process_time()
-    shell = Shell(mesh, H, StVenantKirchhoff.from_young(E, NU), level="consistent")
+    shell = Shell(mesh, H, StVenantKirchhoff.from_young(E, NU), level="consistent", membrane=membrane)
     shell.clamp(clamped)
     shell.edge_load(tip, [0.0, 0.0, P / B])
     res = shell.solve(steps=STEPS, verbose=False, rtol=RTOL, max_dt=None if adaptive else 1.0 / STEPS)
@@ -250,6 +251,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="one repeat on 64 and 256 triangles")
+    ap.add_argument("--membrane", choices=("dkt", "regge"), default="dkt",
+                    help="shellritz's membrane metric (regge: written to peers_regge.*)")
     args = ap.parse_args()
     repeats = 1 if args.quick else args.repeats
     if repeats < 1:
@@ -268,7 +271,7 @@ def main():
     kernels_s, compiled = prepare_kernels()          # Numba: compile, or load from the disk cache
     warm = strip(*WARMUP)
     t = time.perf_counter()
-    run_shellritz(*warm)
+    run_shellritz(*warm, membrane=args.membrane)
     compile_info = {"shellritz_kernels_s": kernels_s, "shellritz_kernels_compiled": compiled,
                     "warmup_mesh": f"{WARMUP[0]}x{WARMUP[1]}", "warmup_triangles": warm[0].n_triangles,
                     "shellritz_warmup_s": time.perf_counter() - t,
@@ -283,8 +286,10 @@ def main():
         case = f"{nx}x{ny}"
         per_code = {code: [] for code in CODES}
         for r in range(repeats):
-            for code, fn in (("shellritz", run_shellritz), ("kratos", run_kratos),
-                             ("shellritz-adaptive", lambda *m: run_shellritz(*m, adaptive=True))):
+            for code, fn in (("shellritz", lambda *m: run_shellritz(*m, membrane=args.membrane)),
+                             ("kratos", run_kratos),
+                             ("shellritz-adaptive",
+                              lambda *m: run_shellritz(*m, adaptive=True, membrane=args.membrane))):
                 out = fn(*mesh)
                 per_code[code].append(out)
                 runs.append({"case": case, "code": code, "repeat": r, **out})
@@ -325,6 +330,7 @@ def main():
         "reference": ref,
         "errors": "err_u, err_w relative to the (inextensible) elastica",
         "shellritz": {"law": "StVenantKirchhoff.from_young(1.2e6, 0.0)", "level": "consistent",
+                      "membrane": args.membrane,
                       "solve": f"solve(steps={STEPS}, rtol={RTOL}, max_dt={1 / STEPS}) defaults: trust-region "
                                "Newton, linear='auto', predictor='tangent'; code shellritz-adaptive: without "
                                "max_dt (steps doubled after easy ones)",
@@ -345,7 +351,7 @@ def main():
         "rows": rows, "runs": runs,
     }
     RESULTS.mkdir(exist_ok=True)
-    name = "peers_quick" if args.quick else "peers"
+    name = ("peers_quick" if args.quick else "peers") + ("" if args.membrane == "dkt" else f"_{args.membrane}")
     (RESULTS / f"{name}.json").write_text(json.dumps(out, indent=2))
     chart(rows, RESULTS / f"{name}.png", machine)
     for r in rows:
