@@ -411,7 +411,7 @@ def _assumed_metric_change(Q, gl, et, el, cur, ref):
     bary, wts = rule(6)
     G = np.zeros((N_DATA, 9, 9))
     alpha, work = np.zeros((len(wts), 3, N_DATA)), np.zeros((N_REGGE, 2 * N_REGGE))
-    data_forms(Q, gl, et, el, bary, G, np.zeros((3, 2)), np.zeros((2, 9)), np.zeros(3))
+    data_forms(Q, gl, et, el, bary, wts, G, np.zeros((3, 2)), np.zeros((2, 9)), np.zeros(3))
     metric_coefficients(bary, et, 0.0, alpha, work)
     D = np.einsum("jpq,pq->j", G, cur @ cur.T - ref @ ref.T)   # the data are quadratic forms
     return alpha @ D

@@ -351,7 +351,6 @@ def _forcing(preconditioner, gnorm, gnorm_prev, tol):
     return float(eta)
 
 
-
 # trust region: a rejected step's radius shrinks to this fraction of the step
 # (0.5 rather than the common 0.25: on the buckling leaf the step at half the
 # rejected one, the last accepted radius, is usually accepted; measured:

@@ -107,8 +107,6 @@ N_JET = 9               # jet variables: r_1 (3), r_2 (3), K^T A K (3: 11, 12, 2
 # 3-point Gauss-Legendre rule on [0, 1]: exact to degree 5 (g_tt quartic x linear)
 EDGE_S = np.array([0.5 - 0.5 * np.sqrt(0.6), 0.5, 0.5 + 0.5 * np.sqrt(0.6)])
 EDGE_W = np.array([5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0])
-# element mean: Dunavant's 6-point rule, exact to degree 4 (g quartic)
-INT_BARY, INT_W = RULES[6]
 
 
 @njit(**KERNEL)
@@ -141,7 +139,7 @@ def cubic_gradient(lam, Q, gl, P, Bc):
 
 
 @njit(**KERNEL)
-def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
+def data_forms(Q, gl, et, el, bary, wts, G, P, Bc, lam):
     """G (N_DATA, 9, 9): the data as quadratic forms of the element's nodal
     vectors, datum_j = sum_pq G[j, p, q] u_p . u_q, of the reduced cubic's
     metric g = Bc^T Bc (cubic_gradient):
@@ -150,7 +148,9 @@ def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
       j = 6 + c: the element mean of g, components c = (11, 12, 22)
     (the degrees of freedom of the first-order Regge element);
       j = N_REGGE + 3 q + c: g at the element's quadrature point q (bary).
-    P (3, 2), Bc (2, 9), lam (3) work."""
+    The element mean is the rule's (bary, wts) weighted mean of the point
+    values: the 6- and 7-point rules that membrane="regge" needs integrate
+    the quartic g exactly.  P (3, 2), Bc (2, 9), lam (3) work."""
     # chart vertex positions (p_0 = 0; edge k runs from node k+1 to node k+2)
     P[0, 0] = 0.0
     P[0, 1] = 0.0
@@ -182,16 +182,6 @@ def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
                     v = Bc[0, p] * Bc[0, q]
                     G[2 * k, p, q] += w0 * v
                     G[2 * k + 1, p, q] += w1 * v
-    for g in range(INT_W.shape[0]):
-        for c in range(3):
-            lam[c] = INT_BARY[g, c]
-        cubic_gradient(lam, Q, gl, P, Bc)
-        wq = INT_W[g]
-        for p in range(9):
-            for q in range(p, 9):
-                G[6, p, q] += wq * Bc[0, p] * Bc[0, q]
-                G[7, p, q] += 0.5 * wq * (Bc[0, p] * Bc[1, q] + Bc[1, p] * Bc[0, q])
-                G[8, p, q] += wq * Bc[1, p] * Bc[1, q]
     for g in range(bary.shape[0]):
         cubic_gradient(bary[g], Q, gl, P, Bc)
         j = N_REGGE + 3 * g
@@ -200,6 +190,8 @@ def data_forms(Q, gl, et, el, bary, G, P, Bc, lam):
                 G[j, p, q] = Bc[0, p] * Bc[0, q]
                 G[j + 1, p, q] = 0.5 * (Bc[0, p] * Bc[1, q] + Bc[1, p] * Bc[0, q])
                 G[j + 2, p, q] = Bc[1, p] * Bc[1, q]
+                for c in range(3):
+                    G[6 + c, p, q] += wts[g] * G[j + c, p, q]
     for j in range(N_REGGE + 3 * bary.shape[0]):
         for p in range(9):
             for q in range(p + 1, 9):
@@ -257,7 +249,9 @@ def metric_coefficients(bary, et, beta, alpha, M):
     R the first-order Regge field (linear, R = sum_m lam_m R_m) with the
     degrees of freedom of the reduced cubic's metric g, and g itself at the
     point.  M (N_REGGE, 2 N_REGGE) work: the dofs of the basis fields
-    lam_m e_c (column 3 m + c), inverted by Gauss-Jordan elimination."""
+    lam_m e_c (column 3 m + c), inverted by Gauss-Jordan elimination
+    (written out: the kernels run without Numba's runtime, which np.linalg
+    needs)."""
     n = N_REGGE
     for r in range(n):
         for c in range(2 * n):

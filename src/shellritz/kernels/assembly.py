@@ -173,7 +173,7 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
     Le = 0.0
     zero_element(mode, ge, ke)
     beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
-    data_forms(Q, gl, et, el, bary, forms, P, Bc, lamw)
+    data_forms(Q, gl, et, el, bary, wts, forms, P, Bc, lamw)
     metric_coefficients(bary, et, beta, alpha, Mw)
     nd = N_REGGE + 3 * bary.shape[0]      # the data in use (regge.data_forms)
     data_values(forms, nd, bref, gram, Dref)
@@ -193,7 +193,7 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
             x9[i] = v[i]
         for c in range(3):
             s = 0.0
-            for j in range(N_DATA):
+            for j in range(nd):
                 s += alpha[iq, c, j] * D[j]
             x9[6 + c] = s
         if not tangent_map(x9, jv, jg, jh, mode):
