@@ -277,7 +277,7 @@ def main():
         return large_load(args.quick)
     if args.fine:
         return fine_reference()
-    ns = [4, 8, 16] if args.quick else [4, 8, 16, 32, 64]
+    ns = [4, 8, 16] if args.quick else [4, 8, 16, 32, 64, 128]
     out = {"courses": {}}
     for name, fn in (("Scordelis-Lo roof", scordelis_lo), ("pinched cylinder", pinched_cylinder),
                      ("pinched hemisphere", pinched_hemisphere)):

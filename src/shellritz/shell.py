@@ -120,7 +120,8 @@ class Shell(Solvable):
         if membrane not in self.MEMBRANES:
             raise ValueError(f"membrane={membrane!r}: choose one of {self.MEMBRANES}")
         if membrane == "regge" and quadrature < 6:
-            # the blend's zero element mean needs the quartic metric integrated exactly
+            # the blend's zero element mean needs the quartic metric integrated
+            # exactly; a 3-point variant was tried (README, Membrane locking)
             raise ValueError(f"membrane='regge' needs a rule of 6 or 7 points, got quadrature="
                              f"{quadrature} (discretize/regge.py)")
         self.membrane = membrane
@@ -253,8 +254,14 @@ class Shell(Solvable):
         return self._prescribe(nodes, position, rotation, slots=(0, 1, 2))
 
     def pin(self, nodes, position=None, components="xyz"):
-        """Fix positions (a pinned support), or only some of their components
-        (e.g. components="z": a roller free in x and y)."""
+        """Fix the positions of these nodes (point supports), or only some of
+        their components (e.g. components="z": a roller free in x and y).
+
+        Only the nodes are held: with membrane="regge" the edges between
+        pinned boundary nodes may bow under in-plane tension, as a membrane
+        pinned at points does.  To hold a whole edge (a hinge: positions
+        along it fixed, rotation about it free) use simply_support; README,
+        Membrane locking."""
         return self._prescribe(nodes, position, None, slots=(0,), components=components)
 
     def rotate(self, nodes, rotation):
