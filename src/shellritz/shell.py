@@ -27,6 +27,7 @@ import scipy.sparse as sp
 from .discretize.dkt import rule
 from .kernels.assembly import (ELEMENT_STATUS_TEXT, add_position_blocks, assemble_dkt,
                                color_elements, hessian_pattern)
+from .kernels.point import ERR_INVERTED
 from .materials import Law
 from .mesh import CORNER_DEG, Mesh, MeshError
 from .model import check_thickness, level_id, pressure_face
@@ -713,9 +714,13 @@ class Shell(Solvable):
                      Y1, self.Y2, self._order, self._colour_start, self._hmap,
                      self._Le, self._G, data, self._status)
         if self._status.any():
-            e = int(np.argmax(self._status != 0))
+            # name an inverted element if there is one (the likeliest cause), else the first
+            bad = np.flatnonzero(self._status)
+            inverted = bad[self._status[bad] == ERR_INVERTED]
+            e = int(inverted[0] if len(inverted) else bad[0])
+            more = f"; {len(bad) - 1} more elements fail" if len(bad) > 1 else ""
             raise EvaluationError(f"element {e} (nodes {self.mesh.triangles[e].tolist()}): "
-                                  f"{ELEMENT_STATUS_TEXT[int(self._status[e])]}")
+                                  f"{ELEMENT_STATUS_TEXT[int(self._status[e])]}{more}")
         if self.strain_gradient is not None:
             self.strain_gradient.add(mode, self, U, self._Le, self._G, data)
         r = U[:, 0]

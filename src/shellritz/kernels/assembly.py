@@ -24,7 +24,7 @@ from ..discretize.regge import (BLEND, MAX_POINTS, N_DATA, N_JET, N_REGGE, N_SLO
                                 tangent_map, tangent_vectors)
 from . import KERNEL
 from .parallel import run_chunks
-from .point import OK, STATUS_TEXT, _reference_geometry, new_scratch, point_kernel
+from .point import ERR_INVERTED, OK, STATUS_TEXT, _reference_geometry, new_scratch, point_kernel
 from .small import fma
 
 ERR_METRIC = 100        # element-level status (the point kernel's are below)
@@ -188,7 +188,7 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
                         gkap, gup)
         # x = (r_1, r_2, Chat), Chat = K^T A(U) K = alpha[iq] . D (regge.py)
         if not match_reference(alpha[iq], Dref, ref):
-            return np.nan, ERR_METRIC
+            return np.nan, _metric_failure(bref, bcur)
         for i in range(6):
             x9[i] = v[i]
         for c in range(3):
@@ -197,7 +197,7 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
                 s += alpha[iq, c, j] * D[j]
             x9[6 + c] = s
         if not tangent_map(x9, jv, jg, jh, mode):
-            return np.nan, ERR_METRIC
+            return np.nan, _metric_failure(bref, bcur)
         tangent_vectors(x9, jv, jg, rhat, Jf, mode)
         for i in range(15):
             vhat[i] = rhat[i] if i < 6 else v[i]
@@ -220,6 +220,22 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
     if mode >= 2:
         add_data_hessian(forms, nd, gam, ke)
     return Le, OK
+
+
+@njit(**KERNEL)
+def _metric_failure(bref, bcur):
+    """The status of an element whose assumed metric is not positive
+    definite: ERR_INVERTED if its facet (the triangle of its nodes'
+    positions) has turned over against the reference facet, else ERR_METRIC."""
+    s = 0.0
+    for m in range(3):
+        m1, m2 = (m + 1) % 3, (m + 2) % 3
+        nc = ((bcur[3, m1] - bcur[0, m1]) * (bcur[6, m2] - bcur[0, m2])
+              - (bcur[3, m2] - bcur[0, m2]) * (bcur[6, m1] - bcur[0, m1]))
+        nr = ((bref[3, m1] - bref[0, m1]) * (bref[6, m2] - bref[0, m2])
+              - (bref[3, m2] - bref[0, m2]) * (bref[6, m1] - bref[0, m1]))
+        s += nc * nr
+    return ERR_INVERTED if s <= 0.0 else ERR_METRIC
 
 
 @njit(**KERNEL)
