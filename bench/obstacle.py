@@ -35,11 +35,13 @@ t/R = 1e-3 and 1e-4, both metrics (about 10 minutes).  Cost (--cost): the
 energy, gradient and Hessian assembly times of both metrics on one mesh.
 Leaf (--leaf): the default scene (the grown disc buckling into a saddle) at
 16, 32, 64 rings, both metrics: energy and saddle height against the mesh.
+Anisotropic (--aniso): the bending-dominated panel on meshes of long thin
+elements, both metrics.
 
 Writes bench/results/obstacle.json, obstacle.png, locking.json, locking.png
 (with the machine), hemisphere_large_load.json, locking_fine.json,
-membrane_cost.json or leaf_membrane.json.
-Run:  python bench/obstacle.py [--quick] [--large-load] [--fine] [--cost] [--leaf]
+membrane_cost.json, leaf_membrane.json or locking_aniso.json.
+Run:  python bench/obstacle.py [--quick] [--large-load] [--fine] [--cost] [--leaf] [--aniso]
 (quick: n <= 16 / 32, a few minutes once compiled).
 """
 
@@ -137,16 +139,18 @@ def large_load(quick):
     (RESULTS / "hemisphere_large_load.json").write_text(json.dumps(out, indent=2))
 
 
-def locking_panel(n, t, membrane="dkt", clamp="generator"):
+def locking_panel(n, t, membrane="dkt", clamp="generator", n_z=None):
     """C E t^3 / q^2 of the cylindrical panel clamped along a straight
     generator (bending dominated) or a curved edge (membrane dominated), by a
     linear solve at the reference (the tangent stiffness; a Newton solve of a
     load small enough to stay linear for t/R = 1e-4 is below the solver's
     round-off floor, the membrane stiffness being 1e8 times the bending one).
     E = t^-3 keeps the bending stiffness O(1) and the arithmetic well scaled.
-    The solve: the product's direct solver (linalg, method "auto")."""
+    The solve: the product's direct solver (linalg, method "auto").  n
+    elements along the arc, n_z (default n) along the length."""
     from shellritz.linalg import make_linear_solver
-    mesh = shapes.cylinder(n, n, radius=1.0, length=2.0, theta=(-np.radians(40), np.radians(40)))
+    mesh = shapes.cylinder(n, n if n_z is None else n_z, radius=1.0, length=2.0,
+                           theta=(-np.radians(40), np.radians(40)))
     s = Shell(mesh, t, lame(t ** -3, 0.0), membrane=membrane)
     if clamp == "generator":
         edge = lambda X: np.abs(np.arctan2(X[:, 1], X[:, 0]) + np.radians(40)) < 1e-9
@@ -165,6 +169,24 @@ def locking_panel(n, t, membrane="dkt", clamp="generator"):
         return float(g @ solver.solve(g))
     finally:
         solver.release()
+
+
+ANISO = ((8, 8), (8, 32), (8, 64), (16, 64), (64, 16), (64, 8))
+
+
+def anisotropic():
+    """bench/results/locking_aniso.json: the bending-dominated panel on
+    meshes of n_arc x n_z elements (long thin elements either way), both
+    metrics, t/R = 1e-3 and 1e-4, relative to the converged value."""
+    out = {"machine": machine_info(), "converged": 5.047, "rows": []}
+    for t in THICKNESS[1:]:
+        for n, nz in ANISO:
+            row = {"t": t, "n_arc": n, "n_z": nz}
+            for membrane in MEMBRANES:
+                row[membrane] = locking_panel(n, t, membrane, n_z=nz) / out["converged"]
+            out["rows"].append(row)
+            print(f"t/R={t:g} {n:3d} x {nz:3d}: dkt {row['dkt']:.4f}, regge {row['regge']:.4f}", flush=True)
+    (RESULTS / "locking_aniso.json").write_text(json.dumps(out, indent=2))
 
 
 def fine_reference():
@@ -263,6 +285,8 @@ def main():
                     help="only the pinched hemisphere at a large load (both metrics)")
     ap.add_argument("--fine", action="store_true",
                     help="only the membrane-dominated panel at n = 256 (both metrics)")
+    ap.add_argument("--aniso", action="store_true",
+                    help="only the bending-dominated panel on anisotropic meshes (both metrics)")
     ap.add_argument("--cost", action="store_true",
                     help="only the assembly time of both metrics on one mesh")
     ap.add_argument("--leaf", action="store_true",
@@ -271,6 +295,8 @@ def main():
     RESULTS.mkdir(exist_ok=True)
     if args.cost:
         return membrane_cost()
+    if args.aniso:
+        return anisotropic()
     if args.leaf:
         return leaf_study()
     if args.large_load:

@@ -65,6 +65,19 @@ def test_pinched_cylinder_metrics_meet_at_a_common_limit():
     assert 1.0 < dkt[0] / dkt[1] < 1.004
 
 
+def test_regge_metric_locks_on_elements_long_across_the_bending():
+    """A limitation (README, Membrane locking): refining the bending-dominated
+    panel along its generators only (8 elements along the arc, elements up
+    to 5.6 times longer than wide) makes the regge metric lock at
+    t/R = 1e-4: 0.996, 0.765, 0.239 of the converged compliance at
+    8 x 8, 8 x 32, 8 x 64 (DKT 3e-4), whatever the blend (B = 0.2, 2, 8:
+    0.25, 0.24, 0.20 at 8 x 64): the Regge field itself; 64 x 8 and 16 x 64
+    are within 0.4 %."""
+    assert locking_panel(8, 1e-4, "regge", n_z=8) / CONVERGED > 0.99
+    assert locking_panel(8, 1e-4, "regge", n_z=64) / CONVERGED < 0.3
+    assert locking_panel(64, 1e-4, "regge", n_z=8) / CONVERGED > 0.99
+
+
 def test_membrane_locking_is_bounded_by_sqrt_tR():
     assert locking_panel(16, 1e-2) / CONVERGED > 0.95      # h_e = 0.09 < 1.5 sqrt(tR) = 0.15
     assert locking_panel(16, 1e-3) / CONVERGED < 0.5       # h_e = 0.09 > 1.5 sqrt(tR) = 0.047: locks
