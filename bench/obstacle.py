@@ -207,7 +207,7 @@ def fine_reference():
     (RESULTS / "locking_fine.json").write_text(json.dumps(out, indent=2))
 
 
-MEMBRANES = ("dkt", "regge")
+MEMBRANES = Shell.MEMBRANES
 THICKNESS = (1e-2, 1e-3, 1e-4)
 
 

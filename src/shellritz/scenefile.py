@@ -250,8 +250,9 @@ def parse_scene(data, base_dir=".", source="scene"):
     if membrane not in Shell.MEMBRANES:
         raise SceneError(f"[shell] membrane: unknown metric {membrane!r}; choose one of "
                          f"{', '.join(Shell.MEMBRANES)}")
-    if membrane == "regge" and shell.get("quadrature", 6) < 6:
-        raise SceneError(f"[shell] membrane = 'regge' needs quadrature = 6 or 7, "
+    if membrane == "regge" and shell.get("quadrature", 6) not in Shell.REGGE_RULES:
+        raise SceneError(f"[shell] membrane = 'regge' needs quadrature = "
+                         f"{' or '.join(map(str, Shell.REGGE_RULES))}, "
                          f"got {shell['quadrature']!r}")
     law = _material(data.get("material", {}))
     solver = _solver(data.get("solver", {}))

@@ -105,6 +105,10 @@ class Shell(Solvable):
     """
 
     MEMBRANES = ("dkt", "regge")
+    # the rules the regge metric takes: the blend's zero element mean needs the
+    # quartic metric integrated exactly (a 3-point variant was tried: README,
+    # Membrane locking)
+    REGGE_RULES = (6, 7)
 
     def __init__(self, mesh, thickness, material, level="consistent", quadrature=6,
                  membrane="dkt"):
@@ -120,10 +124,9 @@ class Shell(Solvable):
         self.bary, self.wts = rule(quadrature)
         if membrane not in self.MEMBRANES:
             raise ValueError(f"membrane={membrane!r}: choose one of {self.MEMBRANES}")
-        if membrane == "regge" and quadrature < 6:
-            # the blend's zero element mean needs the quartic metric integrated
-            # exactly; a 3-point variant was tried (README, Membrane locking)
-            raise ValueError(f"membrane='regge' needs a rule of 6 or 7 points, got quadrature="
+        if membrane == "regge" and quadrature not in self.REGGE_RULES:
+            raise ValueError(f"membrane='regge' needs a rule of "
+                             f"{' or '.join(map(str, self.REGGE_RULES))} points, got quadrature="
                              f"{quadrature} (discretize/regge.py)")
         self.membrane = membrane
         self.strain_gradient = self._strain_gradient_term()
