@@ -17,6 +17,9 @@ def test_main_job_writes_the_grown_leaf(tmp_path, capsys):
     summary = json.loads((out / "leaf.json").read_text())
     assert summary["status"] == "ok" and summary["stability"]["stable"]
     assert summary["history"]["steps"][-1][0] == 1.0
+    # the scene file's locking-free membrane metric (with "dkt" the 16-ring
+    # leaf's energy is 12 times too high: test_obstacle_course)
+    assert summary["level"] == "consistent" and summary["membrane"] == "regge"
     # excess rim growth buckles the flat disc into a saddle: the rim rises on
     # one axis and falls on the other, well beyond the thickness (0.02)
     lo, hi = summary["extent"]["min"][2], summary["extent"]["max"][2]

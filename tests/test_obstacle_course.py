@@ -109,7 +109,8 @@ def test_the_default_leaf_locks_with_the_dkt_metric_not_with_the_regge_metric():
     16, 32, 64 rings (falling like l^2 towards about 8.8e-7); regge metric
     8.754e-7, 8.752e-7, 8.756e-7.  Saddle height 0.5405 (DKT) and 0.5468
     (regge) at 16 rings, both 0.5467 at 64.  Both end stable in 17-18
-    Newton iterations."""
+    Newton iterations.  (So the scene file uses regge since 2026-12-07:
+    test_cli.)"""
     dkt16, regge16, regge32 = leaf(16, "dkt"), leaf(16, "regge"), leaf(32, "regge")
     assert all(r["converged"] and r["stable"] for r in (dkt16, regge16, regge32))
     assert abs(regge16["energy"] / regge32["energy"] - 1) < 1e-3

@@ -27,11 +27,11 @@ def _packaged(name):
     return Path(str(files("shellritz.meshes") / name))
 
 
-def _kernels(say):
+def _kernels(say, membrane):
     from .batch import prepare_kernels
     say("preparing the Numba kernels (the first run compiles them, a few minutes on a "
         "fresh install; cached afterwards) ...")
-    seconds, compiled = prepare_kernels()
+    seconds, compiled = prepare_kernels(membrane)
     say(f"kernels ready in {seconds:.1f} s ({'compiled now and cached' if compiled else 'from the cache'})")
     return seconds
 
@@ -50,7 +50,7 @@ def run_scene(scene_path, out_dir, quiet=False):
     stem = scene.output["name"] or scene_path.stem
     say(f"scene {scene_path}" + (f": {scene.data['description']}" if "description" in scene.data else ""))
     t0 = time.perf_counter()
-    kernels_s = _kernels(say)
+    kernels_s = _kernels(say, scene.membrane)
     say(f"solving {scene.mesh_file} ...")
     summary = run_one({"scene_text": scene_path.read_text(), "scene_dir": str(scene_path.parent),
                        "scene_name": str(scene_path), "input": None, "out_dir": str(out_dir),
@@ -80,7 +80,7 @@ def convert(args):
     from .batch import run_batch
     from .scenefile import load_scene
     scene_path = Path(args.scene) if args.scene else _packaged("convert-defaults.toml")
-    load_scene(scene_path)                  # SceneError before any work
+    scene = load_scene(scene_path)          # SceneError before any work
     if args.format:
         from .meshdata import file_format
         file_format("x." + args.format.lstrip("."))
@@ -88,7 +88,8 @@ def convert(args):
         raise ValueError(f"--workers must be >= 1, got {args.workers}")
     fmt = args.format.lstrip(".") if args.format else None
     if args.scheduler is None:
-        _kernels(lambda m: print(f"shellritz: {m}", file=sys.stderr, flush=True))
+        _kernels(lambda m: print(f"shellritz: {m}", file=sys.stderr, flush=True),
+                 scene.membrane)
     report = run_batch(args.inputs, args.out, scene_path.read_text(), scene_dir=scene_path.parent,
                        scene_name=str(scene_path), fmt=fmt, workers=args.workers,
                        scheduler=args.scheduler, force=args.force, progress=not args.no_progress,

@@ -436,6 +436,11 @@ class Scene:
         return self.data.get(name, {})
 
     @property
+    def membrane(self):
+        """The membrane metric of the triangle engine ([shell] membrane)."""
+        return self.table("shell").get("membrane", "dkt")
+
+    @property
     def mesh_file(self):
         f = self.table("mesh").get("file")
         return None if f is None else (self.base_dir / f)
@@ -485,7 +490,7 @@ class Scene:
         h = self.thickness(surf.mesh) if thickness is None else thickness
         shell = Shell(surf.mesh, thickness=h, material=self.law,
                       level=sh.get("level", "consistent"), quadrature=sh.get("quadrature", 6),
-                      membrane=sh.get("membrane", "dkt") if membrane is None else membrane)
+                      membrane=self.membrane if membrane is None else membrane)
         G0, G1, source = self.growth(surf) if growth is None else (*growth, "carried from the input mesh")
         if G0 is not None:
             try:
