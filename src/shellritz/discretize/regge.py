@@ -47,7 +47,10 @@ instability under finite strain (the lowest-order Regge interpolant of the
 edge arcs alone, an earlier version, had them: README, Membrane locking).
 With the positions alone prescribed on a boundary, its Hermite edge curves
 bow between the nodes under a tension, as a membrane pinned at points does
-(README).
+(README).  The element mean is also three constraints per element on top of
+the six edge moments: on elements long across the bending they are too many
+for the discrete near-isometric motions and the metric locks (README,
+Membrane locking: without them the patch test fails).
 
 Neither R's edge moments nor its mean see a uniform in-plane rotation of the
 nodal gradients about the normal ("drilling") to first order; the pointwise
