@@ -264,8 +264,8 @@ class Shell(Solvable):
         Only the nodes are held: with membrane="regge" the edges between
         pinned boundary nodes may bow under in-plane tension, as a membrane
         pinned at points does.  To hold a whole edge (a hinge: positions
-        along it fixed, rotation about it free) use simply_support; README,
-        Membrane locking."""
+        along it fixed, rotation about it free) use simply_support (a warning
+        names boundary edges pinned at both ends); README, Membrane locking."""
         return self._prescribe(nodes, position, None, slots=(0,), components=components)
 
     def rotate(self, nodes, rotation):
@@ -564,6 +564,8 @@ class Shell(Solvable):
         self._Uref = self.U.copy()
         self._symmetry_constraints()
         self._edge_constraints()
+        if self.membrane == "regge":
+            self._warn_pinned_boundary_edges()
         free = ~self._fixed.reshape(-1)
         self.free = np.where(free)[0]
         self._build_pattern()
@@ -576,6 +578,21 @@ class Shell(Solvable):
         self._last_evaluation = None     # (t, U, E) of the last evaluation (final_energy)
         self._f_faces = self._face_load_vector()
         self._prepared = True
+
+    def _warn_pinned_boundary_edges(self):
+        """membrane="regge": a boundary edge whose two nodes have their
+        positions held but not their derivatives (pin) is a Hermite curve free
+        to bow between them under in-plane tension (pin's docstring)."""
+        fixed = self._fixed
+        held = fixed[:, 0, :].all(axis=1) & ~(fixed[:, 1, :].all(axis=1) | fixed[:, 2, :].all(axis=1))
+        E = self.mesh.boundary_edges
+        bowing = E[held[E[:, 0]] & held[E[:, 1]]]
+        if len(bowing):
+            a, b = (int(i) for i in bowing[0])
+            warnings.warn(f"{len(bowing)} boundary edges have both nodes pinned (the first: nodes {a}-{b}): "
+                          "with membrane='regge' such an edge can bow between its nodes under in-plane "
+                          "tension; simply_support(nodes) holds the edge (a hinge), clamp(nodes) the edge and its rotation",
+                          stacklevel=4)
 
     def _build_pattern(self):
         """Free-DOF numbering, the Hessian's CSR pattern with its map of entry
