@@ -591,7 +591,8 @@ class Shell(Solvable):
             a, b = (int(i) for i in bowing[0])
             warnings.warn(f"{len(bowing)} boundary edges have both nodes pinned (the first: nodes {a}-{b}): "
                           "with membrane='regge' such an edge can bow between its nodes under in-plane "
-                          "tension; simply_support(nodes) holds the edge (a hinge), clamp(nodes) the edge and its rotation",
+                          "tension; simply_support(nodes) holds the edge (a hinge), clamp(nodes) the "
+                          "edge and its rotation",
                           stacklevel=4)
 
     def _build_pattern(self):
