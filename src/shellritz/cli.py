@@ -12,6 +12,8 @@ Default scene (``meshes/leaf.toml``): a flat disc of radius 1, thickness
 gamma = 1 + 0.3 rho^2, so the rim has more length than a flat disc can hold; a
 small through-thickness growth gradient G1 = diag(0.5, -0.5, 0) picks the
 orientation.  The disc buckles into a saddle, as growing leaves and petals do.
+The locking-free membrane metric (membrane = "regge"): with the DKT metric
+this mesh locks (README, Membrane locking).
 """
 
 import argparse

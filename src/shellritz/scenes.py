@@ -239,8 +239,8 @@ def leaf(rings=None, thickness=None, membrane=None):
     (16 rings, 1 536 triangles); else the same scene on ``shapes.disc(rings)``
     (about 6 rings^2 triangles; benchmarks).  ``thickness``: instead of the
     file's 0.02 (same units as the disc's radius 1); ``membrane``: the
-    membrane metric instead of the file's ("dkt" | "regge", Shell).  Returns
-    the Shell, ready to solve."""
+    membrane metric instead of the file's ("regge"; "dkt" | "regge", Shell).
+    Returns the Shell, ready to solve."""
     from importlib.resources import files
     from .meshdata import Surface
     from .scenefile import load_scene
