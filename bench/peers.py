@@ -268,7 +268,7 @@ def main():
     print(f"elastica: tip u = {ref['elastica']['tip_u']:.6f} (along x), w = {ref['elastica']['tip_w']:.6f} (z)")
 
     from shellritz.batch import prepare_kernels
-    kernels_s, compiled = prepare_kernels()          # Numba: compile, or load from the disk cache
+    kernels_s, compiled = prepare_kernels(args.membrane)     # Numba: compile, or load from the disk cache
     warm = strip(*WARMUP)
     t = time.perf_counter()
     run_shellritz(*warm, membrane=args.membrane)

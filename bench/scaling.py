@@ -120,7 +120,7 @@ membrane = sys.argv[7]
 first = {} if path is None else {"thickness_path": path}
 leaf_h = lambda k: leaf(k, thickness=thickness, membrane=membrane)
 linear = solver.split("-")[0]
-kernels_s, compiled = prepare_kernels()
+kernels_s, compiled = prepare_kernels(membrane)
 t = time.perf_counter()
 leaf(4, membrane=membrane).solve(verbose=False, linear=linear)
 # kernels the tiny leaf does not reach, compiled on their first use (after a
