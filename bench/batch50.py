@@ -12,6 +12,15 @@ growth the solver cannot follow.
 
     python bench/batch50.py              # 50 meshes, 2k-20k triangles (an hour or more on 2 cores)
     python bench/batch50.py --quick      # 10 meshes of 200-2 000 triangles
+    python bench/batch50.py --membrane dkt   # the same with the DKT membrane metric -> batch50_dkt.json
+    python bench/batch50.py --membranes  # the convert defaults' membrane metric (about 25 minutes)
+
+--membranes: a curling disc (G0 = 1.05 in the plane, G1 = 1.25 e1 e1) and a
+disc given the forms of a cap of radius 3 (abar/bbar), as in the batch, at
+about 2k, 8k and 32k triangles, converted with the defaults and each membrane
+metric; both grown shapes are stress-free up to the model's own terms, so
+the energy falls to a small common value and its excess is the
+discretization's.  Writes bench/results/convert_membrane.json.
 """
 
 import argparse
@@ -24,6 +33,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
+from machine import machine_info
 from shellritz import shapes
 
 HERE = Path(__file__).resolve().parent
@@ -102,30 +112,82 @@ def make_inputs(folder, n_good, tri_range, seed=0):
     return expected
 
 
+def defaults_with(membrane, work):
+    """The packaged convert defaults with the membrane metric replaced, written
+    to work/defaults-{membrane}.toml; returns its path."""
+    from importlib.resources import files
+    defaults = (files("shellritz.meshes") / "convert-defaults.toml").read_text()
+    lines = [ln for ln in defaults.splitlines() if not ln.startswith("membrane")]
+    k = lines.index('level = "consistent"')
+    scene = work / f"defaults-{membrane}.toml"
+    scene.parent.mkdir(parents=True, exist_ok=True)
+    scene.write_text("\n".join(lines[:k + 1] + [f'membrane = "{membrane}"'] + lines[k + 1:]) + "\n")
+    return scene
+
+
+def membranes(work):
+    """bench/results/convert_membrane.json: energy, Newton iterations and time
+    of the curling disc and the cap at three sizes with each membrane metric,
+    through `shellritz convert` with the packaged defaults, the metric
+    replaced."""
+    folder = work / "membranes-in"
+    folder.mkdir(parents=True, exist_ok=True)
+    for ntri in (2000, 8000, 32000):
+        m = shapes.disc(disc_rings(ntri))
+        write(folder / f"curl-{ntri}.vtu", m,
+              tensors(m.n_nodes, np.diag([1.05, 1.05, 1.0]), np.diag([1.25, 0.0, 0.0])))
+        write(folder / f"cap-{ntri}.vtu", m, cell_data=cap_forms(m, 3.0))
+    rows = []
+    for membrane in ("dkt", "regge"):
+        out = work / f"membranes-{membrane}"
+        subprocess.call([sys.executable, "-m", "shellritz.cli", "convert", str(folder), "-o", str(out),
+                         "--scene", str(defaults_with(membrane, work)), "--force", "--no-progress"])
+        for r in json.loads((out / "batch.json").read_text())["inputs"]:
+            stem = Path(r["input"]).stem
+            s = json.loads((out / f"{stem}.json").read_text())
+            rows.append({"input": stem, "membrane": s["membrane"], "status": s["status"],
+                         "triangles": s["mesh"]["triangles"], "energy": s.get("energy"),
+                         "newton_its": len(s["history"]["iterations"]), "seconds": r.get("seconds")})
+            print(rows[-1], flush=True)
+    (HERE / "results" / "convert_membrane.json").write_text(
+        json.dumps({"machine": machine_info(), "rows": rows}, indent=1))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="10 meshes of 200-2000 triangles")
     ap.add_argument("--work", default="/tmp/shellritz-batch50", help="folder for inputs and outputs")
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--membrane", choices=("dkt", "regge"),
+                    help="the defaults with this membrane metric (results in batch50_{metric}.json); "
+                         "default: the packaged defaults as they are")
+    ap.add_argument("--membranes", action="store_true",
+                    help="only the defaults' membrane metric on a curling disc and a cap at 2k-32k triangles")
     args = ap.parse_args()
     work = Path(args.work)
+    if args.membranes:
+        return membranes(work)
     n_good, tri = ((4, (200, 2000)) if args.quick else (44, (2000, 20000)))
     expected = make_inputs(work / "in", n_good, tri)
     t = time.perf_counter()
+    scene = ["--scene", str(defaults_with(args.membrane, work))] if args.membrane else []
     code = subprocess.call([sys.executable, "-m", "shellritz.cli", "convert", str(work / "in"),
-                            "-o", str(work / "out"), "--workers", str(args.workers), "--force"])
+                            "-o", str(work / "out"), "--workers", str(args.workers), "--force"] + scene)
     wall = time.perf_counter() - t
     report = json.loads((work / "out" / "batch.json").read_text())
     rows = report["inputs"]
     got = {Path(r["input"]).stem: r["status"] for r in rows}
-    out = {"quick": args.quick, "workers": args.workers, "exit_code": code, "wall_s": wall,
+    membrane = next(json.loads((work / "out" / f"{Path(r['input']).stem}.json").read_text())["membrane"]
+                    for r in rows if r["status"] == "ok")
+    out = {"machine": machine_info(), "membrane": membrane, "quick": args.quick, "workers": args.workers,
+           "exit_code": code, "wall_s": wall,
            "inputs": len(rows), "counts": report["counts"],
            "as_expected": all(got.get(k) == v for k, v in expected.items()),
            "unexpected": {k: got.get(k) for k, v in expected.items() if got.get(k) != v},
            "rows": [{k: r.get(k) for k in ("input", "status", "reason", "triangles", "seconds", "stable")}
                     for r in rows]}
     (HERE / "results").mkdir(exist_ok=True)
-    name = "batch50_quick.json" if args.quick else "batch50.json"
+    name = f"batch50{'_quick' if args.quick else ''}{'_' + args.membrane if args.membrane else ''}.json"
     (HERE / "results" / name).write_text(json.dumps(out, indent=1))
     print(f"{len(rows)} inputs in {wall:.0f} s: {report['counts']}; exit code {code}; "
           f"statuses as expected: {out['as_expected']}")

@@ -32,7 +32,7 @@ the finest DKT mesh standing in for the converged answer.
 
 Fine reference (--fine): the membrane-dominated panel at n = 256 for
 t/R = 1e-3 and 1e-4 and the pinched cylinder at n = 256, both metrics
-(about 13 minutes).  Cost (--cost): the
+(about 7 minutes).  Cost (--cost): the
 energy, gradient and Hessian assembly times of both metrics on one mesh.
 Leaf (--leaf): the default scene (the grown disc buckling into a saddle) at
 16, 32, 64 rings, both metrics: energy and saddle height against the mesh.

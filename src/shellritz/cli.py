@@ -13,7 +13,9 @@ gamma = 1 + 0.3 rho^2, so the rim has more length than a flat disc can hold; a
 small through-thickness growth gradient G1 = diag(0.5, -0.5, 0) picks the
 orientation.  The disc buckles into a saddle, as growing leaves and petals do.
 The locking-free membrane metric (membrane = "regge"): with the DKT metric
-this mesh locks (README, Membrane locking).
+this mesh locks (README, Membrane locking).  ``convert``'s defaults
+(``meshes/convert-defaults.toml``: free bodies, thickness 1 % of the extent)
+use it too.
 """
 
 import argparse
@@ -129,7 +131,8 @@ def parser():
                     "DIR/STEM.json and DIR/batch.json.  Inputs whose outputs are complete are "
                     "skipped; a failed input is reported and the batch goes on.",
         epilog="default scene: meshes/convert-defaults.toml (growth from the mesh's G0/G1 or "
-               "abar/bbar arrays when present, rigid motions removed).\n"
+               "abar/bbar arrays when present, thickness 1 % of the extent, the locking-free "
+               "regge membrane metric, rigid motions removed).\n"
                "exit codes: 0 all done, 1 some inputs failed, 2 usage error, 130 interrupted")
     cv.add_argument("inputs", nargs="+", metavar="INPUT", help="mesh files or folders of them")
     cv.add_argument("-o", "--out", required=True, metavar="DIR", help="output directory")
