@@ -8,7 +8,7 @@ Observed (see the assertions):
   the mesh-extrapolated radius (Richardson, n = 128, 256, 512) matches the
   1D shell value to 2e-9 and the error against eq:r0ex falls by 15.9-16.0 per
   halving of h = 0.2 ... 0.025 (fourth order; at least third is required);
-* with Shell(membrane="regge"): strip errors 2.8e-3, 8.8e-5, 8.9e-5, 7.5e-6
+* with Shell(membrane="regge"): strip errors 2.8e-3, 8.8e-5, 8.9e-5, 3.5e-6
   at 20, 40, 80, 160 (below the DKT metric's, not at a steady rate); thin
   cylinder (h = 0.01) second order, ratios 3.99-4.00, errors 10-20 % below
   the DKT metric's;
@@ -64,8 +64,10 @@ def test_strip_rolls_into_the_exact_circle():
 
 @pytest.mark.filterwarnings("ignore::shellritz.validity.ValidityWarning")
 def test_strip_with_the_regge_metric_converges():
-    """Shell(membrane="regge"): errors 2.8e-3, 8.8e-5, 8.9e-5, 7.5e-6 at 20,
-    40, 80, 160 (DKT metric 2.6e-2, 2.3e-3, 2.2e-4, 1.8e-5): below the
+    """Shell(membrane="regge"): errors 2.8e-3, 8.8e-5, 8.9e-5, 3.5e-6 at 20,
+    40, 80, 160 (DKT metric 2.6e-2, 2.3e-3, 2.2e-4, 1.8e-5; at 160 the
+    triangles are thinner than h / 2 and take beta = 1, discretize/regge.py:
+    8.8e-6 before): below the
     DKT metric's at every mesh but not at a steady rate: the blend beta =
     2h/l_e rises from 0.43 to 0.78 over these meshes, and the plain cubic's
     metric, O(l^2) accurate, takes over from the Regge field's O(l^4) (with
@@ -76,7 +78,7 @@ def test_strip_with_the_regge_metric_converges():
     almost stress free (ignored here)."""
     errors = [strip_error(nx, membrane="regge") for nx in (20, 40, 80, 160)]
     assert errors[0] / errors[1] > 20 and errors[1] < 1e-4 and errors[2] < 1e-4, errors
-    assert errors[3] < 1e-5, errors
+    assert errors[3] < 5e-6, errors
 
 
 def test_strip_on_a_perturbed_mesh_converges_too():

@@ -288,7 +288,9 @@ def dkt_active_elements(mesh, h):
     height 0.15 h on a grown square made the energy unbounded below without
     it (tests/test_validity.py).  For right isosceles triangles the two
     criteria coincide, and an element short by its height only has an
-    aspect ratio of 2 or more."""
+    aspect ratio of 2 or more.  The regge membrane metric gives the same thin
+    triangles the conforming field's own metric (kernels/assembly.py,
+    discretize/regge.py)."""
     tri, X = mesh.triangles, mesh.vertices
     edges = np.stack([X[tri[:, (k + 1) % 3]] - X[tri[:, k]] for k in range(3)], axis=1)
     longest = np.linalg.norm(edges, axis=2).max(axis=1)

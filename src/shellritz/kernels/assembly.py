@@ -172,7 +172,14 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
     area = element_chart(Xe, Te, Q, gl, et, el)
     Le = 0.0
     zero_element(mode, ge, ke)
-    beta = min(1.0, BLEND * h / max(el[0], el[1], el[2]))
+    longest = max(el[0], el[1], el[2])
+    beta = min(1.0, BLEND * h / longest)
+    if 2.0 * area / longest < 0.5 * h:
+        # thin against the thickness (height below h/2, as for the strain-gradient
+        # term: strain_gradient.dkt_active_elements): the Regge field R, rebuilt
+        # from the edge data of nearly parallel edges, is ill-conditioned there;
+        # the conforming field's own metric g is not (README, Membrane locking)
+        beta = 1.0
     data_forms(Q, gl, et, el, bary, wts, forms, P, Bc, lamw)
     metric_coefficients(bary, et, beta, alpha, Mw)
     nd = N_REGGE + 3 * bary.shape[0]      # the data in use (regge.data_forms)
