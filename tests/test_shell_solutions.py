@@ -197,7 +197,8 @@ def test_point_loaded_plate_converges_from_above(bc):
     1.00089, simply supported 1.0035, 1.0011, 1.00035 at n = 16, 32, 64;
     ratios of the errors 2.9-3.2).  This is why the pinched cylinder
     converges from above once its membrane does not lock (README, Membrane
-    locking: regge +0.31 % / +0.13 % off the common limit at n = 32 / 64)."""
+    locking: regge +0.36 % / +0.18 % off the common limit, about 1.0017 of
+    the reference, at n = 32 / 64)."""
     err = [point_load_coefficient(bc, n) / POINT_REF[bc] - 1 for n in (16, 32, 64)]
     assert all(e > 0 for e in err), err
     assert err[0] < 0.01, err
