@@ -25,9 +25,11 @@ discretization's.  Writes bench/results/convert_membrane.json.
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import time
+from importlib.resources import files
 from pathlib import Path
 
 import meshio
@@ -35,6 +37,7 @@ import numpy as np
 
 from machine import machine_info
 from shellritz import shapes
+from shellritz.scenefile import load_scene
 
 HERE = Path(__file__).resolve().parent
 
@@ -112,16 +115,17 @@ def make_inputs(folder, n_good, tri_range, seed=0):
     return expected
 
 
+DEFAULTS = Path(str(files("shellritz.meshes") / "convert-defaults.toml"))
+
+
 def defaults_with(membrane, work):
     """The packaged convert defaults with the membrane metric replaced, written
     to work/defaults-{membrane}.toml; returns its path."""
-    from importlib.resources import files
-    defaults = (files("shellritz.meshes") / "convert-defaults.toml").read_text()
-    lines = [ln for ln in defaults.splitlines() if not ln.startswith("membrane")]
-    k = lines.index('level = "consistent"')
+    text, n = re.subn(r'^membrane = "\w+"', f'membrane = "{membrane}"', DEFAULTS.read_text(), flags=re.M)
+    assert n == 1, "convert-defaults.toml names no membrane metric"
     scene = work / f"defaults-{membrane}.toml"
     scene.parent.mkdir(parents=True, exist_ok=True)
-    scene.write_text("\n".join(lines[:k + 1] + [f'membrane = "{membrane}"'] + lines[k + 1:]) + "\n")
+    scene.write_text(text)
     return scene
 
 
@@ -170,16 +174,16 @@ def main():
     n_good, tri = ((4, (200, 2000)) if args.quick else (44, (2000, 20000)))
     expected = make_inputs(work / "in", n_good, tri)
     t = time.perf_counter()
-    scene = ["--scene", str(defaults_with(args.membrane, work))] if args.membrane else []
+    scene = defaults_with(args.membrane, work) if args.membrane else DEFAULTS
     code = subprocess.call([sys.executable, "-m", "shellritz.cli", "convert", str(work / "in"),
-                            "-o", str(work / "out"), "--workers", str(args.workers), "--force"] + scene)
+                            "-o", str(work / "out"), "--workers", str(args.workers), "--force"]
+                           + (["--scene", str(scene)] if args.membrane else []))
     wall = time.perf_counter() - t
     report = json.loads((work / "out" / "batch.json").read_text())
     rows = report["inputs"]
     got = {Path(r["input"]).stem: r["status"] for r in rows}
-    membrane = next(json.loads((work / "out" / f"{Path(r['input']).stem}.json").read_text())["membrane"]
-                    for r in rows if r["status"] == "ok")
-    out = {"machine": machine_info(), "membrane": membrane, "quick": args.quick, "workers": args.workers,
+    out = {"machine": machine_info(), "membrane": load_scene(scene).membrane, "quick": args.quick,
+           "workers": args.workers,
            "exit_code": code, "wall_s": wall,
            "inputs": len(rows), "counts": report["counts"],
            "as_expected": all(got.get(k) == v for k, v in expected.items()),

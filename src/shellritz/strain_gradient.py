@@ -36,7 +36,7 @@ kernels/strain_gradient_dkt.py.
 import numpy as np
 
 from .discretize import line
-from .discretize.dkt import rule
+from .discretize.dkt import THIN_HEIGHT, rule
 from .kernels.strain_gradient_dkt import add_dkt_edge_strain_gradient, add_dkt_strain_gradient
 
 
@@ -289,12 +289,11 @@ def dkt_active_elements(mesh, h):
     it (tests/test_validity.py).  For right isosceles triangles the two
     criteria coincide, and an element short by its height only has an
     aspect ratio of 2 or more.  The regge membrane metric gives the same thin
-    triangles the conforming field's own metric (kernels/assembly.py,
-    discretize/regge.py)."""
+    triangles (discretize/dkt.THIN_HEIGHT) the conforming field's own metric."""
     tri, X = mesh.triangles, mesh.vertices
     edges = np.stack([X[tri[:, (k + 1) % 3]] - X[tri[:, k]] for k in range(3)], axis=1)
     longest = np.linalg.norm(edges, axis=2).max(axis=1)
-    return (longest < h) | (2.0 * mesh.areas / longest < 0.5 * h)
+    return (longest < h) | (2.0 * mesh.areas / longest < THIN_HEIGHT * h)
 
 
 class DKTStrainGradient:

@@ -24,6 +24,13 @@ from numba import njit
 
 from ..kernels import KERNEL
 
+# A triangle is thin against the thickness h when its height (twice its area
+# over its longest edge) is below THIN_HEIGHT * h: it carries the strain-gradient
+# term (strain_gradient.dkt_active_elements) and the regge metric takes the
+# conforming field's own metric there (kernels/assembly._element_regge).
+THIN_HEIGHT = 0.5
+
+
 # Symmetric quadrature rules on the triangle: barycentric points, weights
 # (summing to 1).  Dunavant (1985).
 def _sym_rule(entries):

@@ -17,7 +17,7 @@ s = 0 position, 1 and 2 the derivatives along T_n1, T_n2; local DOF
 import numpy as np
 from numba import njit
 
-from ..discretize.dkt import apply_map, element_chart, gather_element, point_map
+from ..discretize.dkt import THIN_HEIGHT, apply_map, element_chart, gather_element, point_map
 from ..discretize.regge import (BLEND, MAX_POINTS, N_DATA, N_JET, N_REGGE, N_SLOTS,
                                 add_data_hessian, data_forms, data_gradients, data_values,
                                 match_reference, metric_coefficients, tangent_curvature,
@@ -174,11 +174,10 @@ def _element_regge(e, mode, level, kind, psi, params, h, tri, X, T, U, bary, wts
     zero_element(mode, ge, ke)
     longest = max(el[0], el[1], el[2])
     beta = min(1.0, BLEND * h / longest)
-    if 2.0 * area / longest < 0.5 * h:
-        # thin against the thickness (height below h/2, as for the strain-gradient
-        # term: strain_gradient.dkt_active_elements): the Regge field R, rebuilt
-        # from the edge data of nearly parallel edges, is ill-conditioned there;
-        # the conforming field's own metric g is not (README, Membrane locking)
+    if 2.0 * area / longest < THIN_HEIGHT * h:
+        # thin against the thickness (discretize/dkt.py): the Regge field R,
+        # rebuilt from the edge data of nearly parallel edges, is ill-conditioned
+        # there; the conforming field's own metric g is not (README, Membrane locking)
         beta = 1.0
     data_forms(Q, gl, et, el, bary, wts, forms, P, Bc, lamw)
     metric_coefficients(bary, et, beta, alpha, Mw)
