@@ -227,6 +227,28 @@ def test_regge_metric_lets_pinned_boundary_edges_bow():
     assert dev.max() > 0.5
 
 
+def test_no_bowing_warning_where_symmetry_planes_hold_the_edge():
+    """A strip between two symmetry planes y = 0 and y = w, its end x = 0 on
+    a third with z pinned (scenes.StripScene): the end edge's nodes have
+    their positions held, and the derivative along the edge (the y frame
+    vector) keeps its direction (its x and z components are fixed), so the
+    edge cannot bow and the regge metric gives no warning; pinned nodes
+    with free derivatives do get one."""
+    mesh = shapes.rectangle(8, 1, lx=1.0, ly=0.1)
+    end = mesh.nodes_on_plane("x", 0.0)
+
+    def strip(hold_end):
+        s = Shell(mesh, 0.02, LAW, membrane="regge")
+        s.symmetry("y", 0.0).symmetry("y", 0.1)
+        hold_end(s)
+        return s
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        strip(lambda s: (s.symmetry("x", 0.0), s.pin(end, components="z")))._setup()
+    with pytest.warns(UserWarning, match=r"1 boundary edges have both nodes pinned \(the first: nodes"):
+        Shell(mesh, 0.02, LAW, membrane="regge").pin(end)._setup()
+
+
 def _uniform_state(n, h, membrane, support, F=PATCH_F):
     """The patch-test state r = F X, a = F T on an n[0] x n[1] plate with the
     boundary supported (_support): (max |gradient|, number of negative

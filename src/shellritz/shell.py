@@ -581,18 +581,32 @@ class Shell(Solvable):
 
     def _warn_pinned_boundary_edges(self):
         """membrane="regge": a boundary edge whose two nodes have their
-        positions held but not their derivatives (pin) is a Hermite curve free
-        to bow between them under in-plane tension (pin's docstring)."""
+        positions held is a Hermite curve free to bow between them under
+        in-plane tension (pin's docstring) if at either node the derivative
+        along the edge, sum_k (T_k . e) a_k (e the edge direction, T_k the
+        nodal frame), can turn away from e: a free component of a_k, with
+        T_k . e nonzero, along an axis that is not e.  A hinge
+        (simply_support) fixes it; so do symmetry planes across and along
+        the edge (the derivative along the edge keeps its direction)."""
         fixed = self._fixed
-        held = fixed[:, 0, :].all(axis=1) & ~(fixed[:, 1, :].all(axis=1) | fixed[:, 2, :].all(axis=1))
         E = self.mesh.boundary_edges
-        bowing = E[held[E[:, 0]] & held[E[:, 1]]]
+        E = E[fixed[E[:, 0], 0].all(axis=1) & fixed[E[:, 1], 0].all(axis=1)]
+        e = self.X[E[:, 1]] - self.X[E[:, 0]]
+        e /= np.linalg.norm(e, axis=1)[:, None]
+        across = np.abs(e) < 0.99                       # (edge, axis): axis not along the edge
+        bowing = np.zeros(len(E), bool)
+        for end in (0, 1):
+            nodes = E[:, end]
+            along = np.abs(np.einsum("ejk,ej->ek", self.frames[nodes], e)) > 1e-8   # T_k . e != 0
+            turns = along[:, :, None] & ~fixed[nodes, 1:, :] & across[:, None, :]
+            bowing |= turns.any(axis=(1, 2))
+        bowing = E[bowing]
         if len(bowing):
             a, b = (int(i) for i in bowing[0])
-            warnings.warn(f"{len(bowing)} boundary edges have both nodes pinned (the first: nodes {a}-{b}): "
-                          "with membrane='regge' such an edge can bow between its nodes under in-plane "
-                          "tension; simply_support(nodes) holds the edge (a hinge), clamp(nodes) the "
-                          "edge and its rotation",
+            warnings.warn(f"{len(bowing)} boundary edges have both nodes pinned (the first: nodes {a}-{b}) "
+                          "and the derivative along them free to turn: with membrane='regge' such an "
+                          "edge can bow between its nodes under in-plane tension; simply_support(nodes) "
+                          "holds the edge (a hinge), clamp(nodes) the edge and its rotation",
                           stacklevel=4)
 
     def _build_pattern(self):
