@@ -176,15 +176,14 @@ def main():
     t = time.perf_counter()
     scene = defaults_with(args.membrane, work) if args.membrane else DEFAULTS
     code = subprocess.call([sys.executable, "-m", "shellritz.cli", "convert", str(work / "in"),
-                            "-o", str(work / "out"), "--workers", str(args.workers), "--force"]
-                           + (["--scene", str(scene)] if args.membrane else []))
+                            "-o", str(work / "out"), "--workers", str(args.workers), "--force",
+                            "--scene", str(scene)])
     wall = time.perf_counter() - t
     report = json.loads((work / "out" / "batch.json").read_text())
     rows = report["inputs"]
     got = {Path(r["input"]).stem: r["status"] for r in rows}
     out = {"machine": machine_info(), "membrane": load_scene(scene).membrane, "quick": args.quick,
-           "workers": args.workers,
-           "exit_code": code, "wall_s": wall,
+           "workers": args.workers, "exit_code": code, "wall_s": wall,
            "inputs": len(rows), "counts": report["counts"],
            "as_expected": all(got.get(k) == v for k, v in expected.items()),
            "unexpected": {k: got.get(k) for k, v in expected.items() if got.get(k) != v},
