@@ -18,17 +18,22 @@ import numpy as np
 THREADS = 2
 
 
-def amg_cg_iterations(K, layout, finest=None, options=None):
+def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None):
     """CG on ``finest`` (default K; lower CSR) preconditioned by the solver's
     hierarchy built on K (``options`` over the solver's: theta, omega, max_levels,
-    max_coarse; AMGSolver._build); with
+    max_coarse, smoothed_levels; AMGSolver._build; ``prolongators``: the
+    geometric hierarchy over nested meshes instead of smoothed aggregation); with
     ``finest`` the hierarchy's finest level (residuals and smoother) is that
-    matrix.  Returns dict(its, reason, setup_s, cg_s, levels, coarsest_blocks)
-    (pyamg's count of the coarsest level: nodal blocks or aggregates)."""
+    matrix.  Returns dict(its, reason, setup_s, cg_s, levels, coarsest_blocks,
+    complexity) (pyamg's count of the coarsest level: nodal blocks or
+    aggregates; the operator complexity: the values of all levels' operators
+    over the finest one's)."""
     from shellritz.linalg import (_smooth, free_rigid_modes, lower_matvec,
                                   make_linear_solver, projector, steihaug_cg)
     finest = K if finest is None else finest
     project = projector(free_rigid_modes(layout))
+    if prolongators is not None:
+        layout = layout._replace(prolongators=prolongators)
     amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, layout)
     amg.options = dict(options or {})
     t = time.perf_counter()
@@ -44,7 +49,8 @@ def amg_cg_iterations(K, layout, finest=None, options=None):
     coarse = amg._ml.levels[-1].A
     blocks = coarse.shape[0] // (coarse.blocksize[0] if hasattr(coarse, "blocksize") else 1)
     out = dict(its=info["iterations"], reason=info["reason"], setup_s=setup,
-               cg_s=time.perf_counter() - t, levels=len(amg._ml.levels), coarsest_blocks=int(blocks))
+               cg_s=time.perf_counter() - t, levels=len(amg._ml.levels), coarsest_blocks=int(blocks),
+               complexity=sum(lv.A.data.size for lv in amg._ml.levels) / amg._ml.levels[0].A.data.size)
     amg.release()
     return out
 

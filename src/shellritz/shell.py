@@ -28,12 +28,13 @@ from .discretize.dkt import rule
 from .kernels.assembly import (ELEMENT_STATUS_TEXT, add_position_blocks, assemble_dkt,
                                color_elements, hessian_pattern)
 from .kernels.point import ERR_INVERTED
+from .linalg import BlockLayout
 from .materials import Law
 from .mesh import CORNER_DEG, Mesh, MeshError
 from .model import check_thickness, level_id, pressure_face
 from .solve import EvaluationError, Solvable
 from .strain_gradient import DKTStrainGradient, coefficient, dkt_active_elements
-from .transfer import interpolate_state
+from .transfer import interpolate_state, multigrid_levels
 from .validity import dkt_validity
 
 __all__ = ["Shell", "Result"]
@@ -133,6 +134,7 @@ class Shell(Solvable):
         n = mesh.n_nodes
         self.X = mesh.vertices
         self.frames = mesh.frames.copy()
+        self.prolongators = ()          # of the coarser meshes of the last start (transfer.multigrid_levels)
         # growth: G(t) from (G0, G1) by a linear ramp, or a user function of t
         self._G0 = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         self._G1 = np.zeros((n, 3, 3))
@@ -801,7 +803,7 @@ class Shell(Solvable):
             C = _near_null_candidates(self.U, np.arange(count), sample)
             keep = _independent_columns(C.reshape(-1, count))[:NEAR_NULL_VECTORS]
             return _near_null_candidates(self.U, keep).reshape(9 * n, len(keep))
-        return 9, self.free, 9 * n, rigid_modes, near_null
+        return BlockLayout(9, self.free, 9 * n, rigid_modes, near_null, self.prolongators)
 
     def _node_positions(self, nodes):
         return self.U[nodes, 0]
@@ -826,6 +828,7 @@ class Shell(Solvable):
         if result.t is None:
             raise ValueError("start: the result has no equilibrium state (its solve failed at the start)")
         U = interpolate_state(result, self)
+        self.prolongators = multigrid_levels(result, self)
         t = float(result.t)
         self.set_parameter(t)
         saved = self.save_point()

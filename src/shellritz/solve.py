@@ -57,7 +57,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from .linalg import (AMG_LEAN_NEAR_NULL, AUTO_DIRECT_MAX_DOFS, PRECISIONS, CGPath,
+from .linalg import (AUTO_DIRECT_MAX_DOFS, PRECISIONS, CGPath,
                      LinearSolverError, free_rigid_modes, jacobi, lower_matvec, make_linear_solver,
                      projector, resolve_method, steihaug_cg)
 from .model import checked_float, checked_int
@@ -235,7 +235,7 @@ class _Linear:
             self.history.notes.append(f"{self.solver.name}: {exc}")
             negative = None
         if getattr(self.solver, "builds", 0) > builds:
-            self.note_lean_hierarchy()
+            self.note_hierarchy()
         self.history.factorizations += 1
         return negative, time.perf_counter() - t0
 
@@ -247,15 +247,15 @@ class _Linear:
         self.project = projector(self.rigid)
         return layout
 
-    def note_lean_hierarchy(self):
-        """A history note (and a line with verbose) when the AMG hierarchy
-        just built has the lean near null space (AMG_LEAN_NEAR_NULL)."""
-        if getattr(self.solver, "lean_near_null", False):
-            note = (f"AMG: hierarchy on the first {AMG_LEAN_NEAR_NULL} near-null vectors only "
-                    "(not enough memory for all; more CG iterations)")
-            self.history.notes.append(note)
+    def note_hierarchy(self):
+        """A history note (and a line with verbose), once per solve, where
+        the AMG hierarchy just built is not the default one (AMGSolver.note:
+        multigrid over nested meshes, or the lean near null space)."""
+        note = getattr(self.solver, "note", None)
+        if note is not None and "AMG: " + note not in self.history.notes:
+            self.history.notes.append("AMG: " + note)
             if self.opts.verbose:
-                print("    " + note, flush=True)
+                print("    AMG: " + note, flush=True)
 
     def may_reuse(self, opts, n):
         """The next Newton step (n free DOFs) may be solved with the last
@@ -636,7 +636,7 @@ def minimize(problem, t, opts, history, g_ref, lin, may_cut=False, accept=None):
             rebuilt = lin.solver.note_iterations(info["iterations"], info["reason"], eta)
             setup += rebuilt
             if rebuilt:
-                lin.note_lean_hierarchy()
+                lin.note_hierarchy()
                 note = (f"t={t:.4g} it={it}: AMG hierarchy rebuilt ({info['iterations']} CG iterations)"
                         + ("; the previous one released first: no memory for two"
                            if lin.solver.released_previous else ""))

@@ -72,13 +72,38 @@ def interpolate_state(result, shell):
     ValueError naming the first node of ``shell`` that lies off the old
     reference mesh (outside its triangles by more than OUTSIDE in
     barycentric coordinates, or farther from their plane than their size)."""
+    return interpolate(result.shell, _state_of(result), shell)
+
+
+def multigrid_levels(result, shell):
+    """The prolongators of the nested meshes below ``shell`` for multigrid
+    (linalg.BlockLayout, finest first): from ``result``'s mesh, where it
+    has at most half of ``shell``'s nodes, linearized at its state
+    (interpolation_jacobian, values in single precision: half the memory,
+    the hierarchy rounds them anyway), followed by the levels that
+    ``result``'s shell started from; none otherwise."""
     old = result.shell
-    U_old = np.concatenate([result.r[:, None], result.derivatives], axis=1)
-    if not np.all(np.isfinite(U_old)):
+    if 2 * old.mesh.n_nodes > shell.mesh.n_nodes:
+        return ()
+    P = interpolation_jacobian(old, _state_of(result), shell)
+    P.data = P.data.astype(np.float32)
+    return (P, *old.prolongators)
+
+
+def _state_of(result):
+    """U (n, 3, 3) of a Result: positions and tangent derivatives."""
+    U = np.concatenate([result.r[:, None], result.derivatives], axis=1)
+    if not np.all(np.isfinite(U)):
         raise ValueError("start: the result's state has non-finite values")
-    tri = old.mesh.triangles
+    return U
+
+
+def _located(old, shell):
+    """(old triangle, barycentric coordinates) of each node of ``shell`` on
+    the reference mesh of ``old`` (interpolate_state's error where a node
+    lies off it)."""
     P = shell.X
-    e, lam, dist, score = locate(old.X, tri, P)
+    e, lam, dist, score = locate(old.X, old.mesh.triangles, P)
     size = np.sqrt(2.0 * old.mesh.areas[e])
     off = (score < -OUTSIDE) | (dist > size)
     if off.any():
@@ -87,13 +112,68 @@ def interpolate_state(result, shell):
                          f"(nearest triangle {int(e[p])}: barycentric {lam[p].round(3).tolist()}, "
                          f"{dist[p]:.3g} from its plane); start= needs a mesh of the same "
                          "reference surface")
+    return e, lam
+
+
+def interpolate(old, U_old, shell):
+    """The state (n, 3, 3) of ``shell`` interpolated from the state
+    ``U_old`` of the shell ``old`` (module docstring)."""
+    e, lam = _located(old, shell)
     F_old = deformation_gradients(old, U_old)
-    nodes = tri[e]
+    nodes = old.mesh.triangles[e]
     F = np.einsum("pi,pikj->pkj", lam, F_old[nodes])
-    d = P[:, None, :] - old.X[nodes]
+    d = shell.X[:, None, :] - old.X[nodes]
     r = np.einsum("pi,pik->pk", lam, U_old[nodes, 0] + 0.5 * np.einsum("pikj,pij->pik", F_old[nodes], d))
-    U = np.empty((len(P), 3, 3))
+    U = np.empty((len(shell.X), 3, 3))
     U[:, 0] = r
     U[:, 1] = np.einsum("pkj,pj->pk", F, shell.frames[:, :, 0])
     U[:, 2] = np.einsum("pkj,pj->pk", F, shell.frames[:, :, 1])
     return U
+
+
+def interpolation_jacobian(old, U_old, shell):
+    """d interpolate(old, U, shell) / dU at U_old: a BSR matrix
+    (9 n_new, 9 n_old) of nodal 9 x 9 blocks (a node's DOFs (r, U_1, U_2),
+    three per new node: the vertices of its old triangle), the prolongation
+    of increments from ``old``'s mesh to ``shell``'s.  With
+    n = U_1 x U_2 / |U_1 x U_2|,
+    dF_i v = dU_i1 (T_i1.v) + dU_i2 (T_i2.v) + dn_i (N_i.v) and
+    dn = (I - n n^T) (dU_1 x U_2 + U_1 x dU_2) / |U_1 x U_2|."""
+    import scipy.sparse as sp
+    e, lam = _located(old, shell)
+    nodes = old.mesh.triangles[e]                              # (p, 3)
+    T, N = old.frames, old.mesh.normals
+    c = np.cross(U_old[:, 1], U_old[:, 2])
+    s = np.linalg.norm(c, axis=1)
+    n = c / s[:, None]
+    Pi = (np.eye(3) - np.einsum("ik,il->ikl", n, n)) / s[:, None, None]
+    dn_dU1 = -Pi @ _skew(U_old[:, 2])                          # dU_1 x U_2 = -[U_2]x dU_1
+    dn_dU2 = Pi @ _skew(U_old[:, 1])
+
+    def dF(v):
+        """(p, 3, 3, 9): the matrices dF_i v (rows) of (dr, dU_1, dU_2)
+        (columns) at the three old vertices, v (p, 3, 3) per vertex."""
+        out = np.zeros(v.shape[:2] + (3, 9))
+        eye = np.eye(3)
+        along_n = np.einsum("pij,pij->pi", N[nodes], v)[..., None, None]
+        for a, dn in ((0, dn_dU1), (1, dn_dU2)):
+            along = np.einsum("pij,pij->pi", T[nodes, :, a], v)[..., None, None]
+            out[..., 3 + 3 * a:6 + 3 * a] = along * eye + along_n * dn[nodes]
+        return out
+    B = np.zeros((len(e), 3, 9, 9))
+    B[:, :, 0:3, 0:3] = np.eye(3)
+    B[:, :, 0:3] += 0.5 * dF(shell.X[:, None, :] - old.X[nodes])
+    for a in (1, 2):
+        B[:, :, 3 * a:3 * a + 3] = dF(np.repeat(shell.frames[:, None, :, a - 1], 3, axis=1))
+    B *= lam[:, :, None, None]
+    J = sp.bsr_matrix((B.reshape(-1, 9, 9), nodes.reshape(-1), np.arange(0, 3 * len(e) + 1, 3)),
+                      shape=(9 * len(e), 9 * len(old.X)))
+    J.sort_indices()
+    return J
+
+
+def _skew(v):
+    """[v]x (n, 3, 3): [v]x w = v x w."""
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    return S - np.swapaxes(S, -1, -2)

@@ -18,6 +18,7 @@ import scipy.sparse as sp
 
 from ..kernels.line_assembly import assemble_line
 from ..kernels.point import STATUS_TEXT, _reference_geometry
+from ..linalg import BlockLayout
 from ..materials import Law
 from ..model import check_thickness, level_id, pressure_face
 from ..solve import EvaluationError, Solvable
@@ -496,7 +497,7 @@ class LineShell(Solvable):
         (``_rigid_modes``), for the solver (linalg.free_rigid_modes)."""
         n = self.n_nodes
         rigid = lambda: self._rigid_modes(self.U.reshape(n, 4))
-        return 4, self.free, 4 * n, rigid, rigid
+        return BlockLayout(4, self.free, 4 * n, rigid, rigid)
 
     def _node_positions(self, nodes):
         """(a, b) of the nodes."""

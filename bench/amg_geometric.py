@@ -1,0 +1,90 @@
+"""Multigrid over nested meshes against smoothed aggregation where the
+elements are shorter than the thickness (issue 10: "Krylov iterations per
+Newton step growing at most logarithmically"; bench/amg_thickness_ratio.py
+found that the AMG iterations follow h/l, not the mesh size).
+
+The measure of bench/amg_thickness_ratio.py (the leaf, meshes/leaf.toml, on
+shapes.disc(rings) at h = ratio / rings, its reference stiffness, CG to a
+relative residual of 1e-8, one W-cycle per iteration) with four
+hierarchies:
+
+* ``sa``: the product's smoothed aggregation (AMGSolver: 18 near-null
+  vectors, three levels);
+* ``geometric``: the coarse spaces of the discs of rings / 2, rings / 4, ...
+  (down to at least 11 rings, the last one solved directly), the
+  prolongators the interpolation of nested iteration linearized
+  (transfer.interpolation_jacobian at the reference state), coarse
+  operators P^T A P;
+* ``geometric-smoothed-finest``: the same with the finest prolongator
+  smoothed by one block Jacobi step (as smoothed aggregation smooths its
+  tentative one);
+* ``geometric-smoothed``: every prolongator smoothed.
+
+Rows: method, rings, n_triangles, dofs, h_over_l, cg_its, reason, setup_s,
+cg_s, levels, level_dofs, complexity (values of all levels' operators over
+the finest one's: memory).  Writes bench/results/amg_geometric.json (rows of
+the cases run replace those of the same method, rings and ratio).
+Run:  python bench/amg_geometric.py [--rings 45 91] [--ratios 0.5 1.8 3.6 7.3 14.6]
+      [--methods sa geometric geometric-smoothed-finest geometric-smoothed]
+"""
+
+import argparse
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+METHODS = ("sa", "geometric", "geometric-smoothed-finest", "geometric-smoothed")
+COARSEST_RINGS = 11
+
+CHILD = r"""
+import json, sys
+from importlib.resources import files
+from amg_cg import amg_cg_iterations
+from shellritz import shapes
+from shellritz.meshdata import Surface
+from shellritz.scenefile import load_scene
+from shellritz.transfer import interpolation_jacobian
+method, rings, ratio, coarsest = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
+scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+
+def reference(r):
+    # the DKT membrane metric, as bench/amg_thickness_ratio.py measures
+    shell = scene.build(Surface(shapes.disc(r)), thickness=ratio / rings, membrane="dkt")[0]
+    shell._setup()
+    shell.set_parameter(0.0)
+    return shell
+shell = reference(rings)
+x = shell.free_state()
+_, _, K = shell.evaluate(x, 2)
+prolongators, options = None, {}
+if method != "sa":
+    shells = [shell]
+    while shells[-1].mesh.n_nodes > 1 and rings // 2 ** len(shells) >= coarsest:
+        shells.append(reference(rings // 2 ** len(shells)))
+    prolongators = [interpolation_jacobian(c, c.U, f) for f, c in zip(shells, shells[1:])]
+    options = dict(smoothed_levels={"geometric": 0, "geometric-smoothed-finest": 1}.get(method, len(prolongators)))
+m = amg_cg_iterations(K, shell.block_layout(), options=options, prolongators=prolongators)
+print("ROW " + json.dumps(dict(method=method, rings=rings, n_triangles=int(shell.mesh.n_triangles), dofs=int(len(x)),
+                               h_over_l=ratio, cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"],
+                               cg_s=m["cg_s"], levels=m["levels"], complexity=m["complexity"])), flush=True)
+"""
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rings", type=int, nargs="+", default=[45, 91])
+    ap.add_argument("--ratios", type=float, nargs="+", default=[0.5, 1.8, 3.6, 7.3, 14.6])
+    ap.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS))
+    args = ap.parse_args()
+    sys.path.insert(0, str(HERE))
+    from amg_cg import run_cases
+    run_cases(RESULTS / "amg_geometric.json",
+              "CG iterations to 1e-8 on the leaf's reference stiffness: smoothed aggregation "
+              "against multigrid over nested meshes", CHILD,
+              [dict(method=m, rings=r, h_over_l=ratio, coarsest=COARSEST_RINGS)
+               for r in args.rings for ratio in args.ratios for m in args.methods])
+
+
+if __name__ == "__main__":
+    main()
