@@ -135,8 +135,9 @@ AMG_ONE_LEVEL_BLOCKS = 3000
 # the plain interpolation; on the leaf's reference stiffness (CG to 1e-8,
 # 12k triangles, bench/amg_geometric.py) 17 / 25 / 30 iterations at
 # h/l = 3.6 / 7.3 / 14.6 (smoothed aggregation 25 / 62 / 107, the plain
-# interpolation 32 / 78 / 122; every prolongator smoothed: the same
-# iterations at 1.2 times the operators' memory)
+# interpolation 32 / 78 / 122); every prolongator smoothed: the same
+# iterations, but at 50k triangles and h/l = 14.6 31 against 47, for
+# 1.2-1.35 times the operators' memory and 4-13 times the set-up
 GEOMETRIC_SMOOTHED_LEVELS = 1
 # the CG iterations a rebuild of the hierarchy is measured against are at
 # least these (AMGSolver.note_iterations: a first solve cut on the
@@ -525,7 +526,10 @@ class BlockLayout(NamedTuple):
 
 
 class AMGSolver:
-    """pyamg smoothed aggregation as the CG preconditioner.
+    """Algebraic multigrid as the CG preconditioner: pyamg smoothed
+    aggregation, or, where the solve started from coarser meshes
+    (``layout.prolongators``), multigrid over those meshes
+    (_geometric_hierarchy).
 
     The free-DOF Hessian is embedded in the full nodal numbering (fixed DOFs
     get an identity row scaled to the diagonal), so that it has 9 x 9 nodal
@@ -746,10 +750,10 @@ def _geometric_hierarchy(A, prolongators, fixed, coarse_solver, omega, smoothed_
         level.A = A
         levels.append(level)
         P = P.copy()
-        if k == 0:
-            P.data[fixed.reshape(-1, P.blocksize[0]).repeat(P.indptr[1:] - P.indptr[:-1], axis=0)] = 0.0
+        if k == 0:           # the block rows' rows of fixed DOFs, each block row repeated per block
+            P.data[fixed.reshape(-1, P.blocksize[0]).repeat(np.diff(P.indptr), axis=0)] = 0.0
         if k < smoothed_levels:
-            P = _smoothed_prolongator(A, P, omega).tobsr(blocksize=P.blocksize)
+            P = _smoothed_prolongator(A, P, omega)
         level.P = _SingleBSR(P)
         level.R = _TransposeOf(level.P)
         coarse = _galerkin(A, level.P)
