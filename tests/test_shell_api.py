@@ -293,7 +293,9 @@ def test_the_result_energy_is_the_last_evaluation_where_that_was_of_the_final_st
     validity check reads) takes the last evaluation where it was of the
     current state and parameter, else evaluates: after a solve no
     evaluation and the energy of a fresh one (to round-off of the directors'
-    warm start); after a move, a change of t, or a failed evaluation
+    warm start: observed below 1e-13 relative on an Intel Xeon, 2.5e-13 on
+    an AMD EPYC, the kernels compiled for the host CPU; the state 1.001 x
+    differs by 0.43); after a move, a change of t, or a failed evaluation
     (partly overwritten element arrays), one."""
     res = leaf(8).solve(verbose=False)
     s = res.shell
@@ -301,11 +303,11 @@ def test_the_result_energy_is_the_last_evaluation_where_that_was_of_the_final_st
     evaluate = Shell.evaluate
     monkeypatch.setattr(Shell, "evaluate", lambda self, x, mode: calls.append(mode) or evaluate(self, x, mode))
     assert s.final_energy() == res.energy and not calls
-    assert res.energy == pytest.approx(s.evaluate(s.free_state(), 0)[0], rel=1e-13, abs=0)
+    assert res.energy == pytest.approx(s.evaluate(s.free_state(), 0)[0], rel=1e-12, abs=0)
     x = s.free_state()
     s.evaluate(1.001 * x, 1)                       # a trial elsewhere
     calls.clear()
-    assert s.final_energy() == pytest.approx(res.energy, rel=1e-13, abs=0) and calls == [0]
+    assert s.final_energy() == pytest.approx(res.energy, rel=1e-12, abs=0) and calls == [0]
     s.set_parameter(0.5)
     calls.clear()
     s.final_energy()
@@ -318,4 +320,4 @@ def test_the_result_energy_is_the_last_evaluation_where_that_was_of_the_final_st
         s.evaluate(s.free_state(), 0)
     s.U[:] = U
     calls.clear()
-    assert s.final_energy() == pytest.approx(res.energy, rel=1e-13, abs=0) and calls == [0]
+    assert s.final_energy() == pytest.approx(res.energy, rel=1e-12, abs=0) and calls == [0]
