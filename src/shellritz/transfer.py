@@ -20,6 +20,10 @@ amount): on a flat reference exact for deformations quadratic in the
 reference position, as the gradients are (tested); on a curved one the
 normal offset of the new node from the old triangle's plane (of the order
 l^2 / R) is carried by ``n_i N_i^T``.
+
+The derivative of this map with respect to the old state
+(interpolation_jacobian) is the prolongation of multigrid over the nested
+meshes a solve started from (multigrid_levels, linalg._geometric_hierarchy).
 """
 
 import numpy as np
