@@ -492,7 +492,7 @@ def test_amg_keeps_the_rigid_and_bending_vectors_where_memory_is_short(room, mon
     without the term), then strains and quadratic displacements; where the
     hierarchy would not leave room for the Newton iteration
     (_hierarchy_need) AMG builds on the first twelve: coarse blocks of 12
-    instead of 18, said in lean_near_null and in the solve's history."""
+    instead of 18, said in its note and in the solve's history."""
     import shellritz.linalg as linalg
     from shellritz.solve import _Linear
     monkeypatch.setattr(linalg, "AMG_ONE_LEVEL_BLOCKS", 0)
@@ -514,7 +514,7 @@ def test_amg_keeps_the_rigid_and_bending_vectors_where_memory_is_short(room, mon
     K = shell.evaluate(shell.free_state(), 2)[2]
     amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, shell.block_layout())
     amg.factorize(K)
-    assert amg.lean_near_null == (not room)
+    assert (amg.note is not None) == (not room)
     assert amg._ml.levels[0].P.blocksize == (9, 18 if room else 12)
     amg.release()
     history = types.SimpleNamespace(notes=[], factorizations=0, linear=None)

@@ -9,7 +9,7 @@ import pytest
 from shellritz import NeoHookean, Shell, shapes
 from shellritz.discretize.planestrain import PlaneStrainShell
 from shellritz.scenes import leaf
-from shellritz.transfer import interpolate, interpolate_state, interpolation_jacobian
+from shellritz.transfer import carry_over, interpolate, interpolation_jacobian
 
 
 def _shell(mesh):
@@ -40,7 +40,7 @@ def test_quadratic_deformations_are_carried_exactly():
     coarse, fine = _shell(shapes.disc(5)), _shell(shapes.disc(13, perturb=0.2, seed=3))
     U = _quadratic_state(coarse)
     old = SimpleNamespace(shell=coarse, r=U[:, 0], derivatives=U[:, 1:])
-    error = np.abs(interpolate_state(old, fine) - _quadratic_state(fine)).max()
+    error = np.abs(carry_over(old, fine)[0] - _quadratic_state(fine)).max()
     assert error < 1e-13
 
 
@@ -88,7 +88,7 @@ def test_a_fine_solve_from_a_coarse_equilibrium_reaches_the_same_equilibrium_soo
 def test_a_solve_started_from_coarser_meshes_preconditions_with_multigrid_over_them(monkeypatch):
     """The 16-ring leaf started from the 8-ring equilibrium, itself started
     from the 4-ring one: its shell keeps the prolongators of both coarser
-    meshes (transfer.multigrid_levels), an AMG solve builds its hierarchy on
+    meshes (transfer.carry_over), an AMG solve builds its hierarchy on
     them (said in the history) and reaches the equilibrium of the direct
     solve (energy to 1e-9, positions to 1e-6; observed 4e-13 and 2e-7); a
     start from a mesh as fine keeps no levels."""

@@ -557,7 +557,6 @@ class AMGSolver:
         self.K = None
         self.builds = 0
         self.released_previous = False
-        self.lean_near_null = False     # the last build kept AMG_LEAN_NEAR_NULL vectors only
         self.note = None                # what the last build was, where not smoothed aggregation in full
 
     def _embed(self, K):
@@ -610,7 +609,7 @@ class AMGSolver:
             raise ValueError(f"AMG options {sorted(unknown)}: choose from {sorted(opts)}")
         opts.update(self.options)
         smoothed_levels = opts.pop("smoothed_levels")
-        self.lean_near_null, self.note = False, None
+        self.note = None
         if self.prolongators and not self.one_level:
             fixed = np.ones(self.n_full, bool)
             fixed[self.free_full] = False
@@ -618,9 +617,8 @@ class AMGSolver:
             self.note = f"multigrid over the {len(self.prolongators)} coarser meshes of the start (nested iteration)"
         else:
             B = self.near_null()
-            self.lean_near_null = (B.shape[1] > AMG_LEAN_NEAR_NULL
-                                   and _hierarchy_need(A, K, B.shape[1]) > _available_memory())
-            if self.lean_near_null:
+            if (B.shape[1] > AMG_LEAN_NEAR_NULL
+                    and _hierarchy_need(A, K, B.shape[1]) > _available_memory()):
                 B = np.ascontiguousarray(B[:, :AMG_LEAN_NEAR_NULL])
                 self.note = (f"hierarchy on the first {AMG_LEAN_NEAR_NULL} near-null vectors only "
                              "(not enough memory for all; more CG iterations)")
@@ -726,11 +724,7 @@ def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coa
         C = symmetric_strength_of_connection(A, theta=theta)
         T, B = fit_candidates(standard_aggregation(C)[0], B)
         del C
-        level.P = _SingleBSR(_smoothed_prolongator(A, T, omega))
-        level.R = _TransposeOf(level.P)
-        coarse = _galerkin(A, level.P)
-        _smooth(level, A, single=len(levels) == 1)
-        A = coarse
+        A = _coarsen(level, A, _smoothed_prolongator(A, T, omega), single=len(levels) == 1)
     return MultilevelSolver(levels, coarse_solver=coarse_solver)
 
 
@@ -754,15 +748,23 @@ def _geometric_hierarchy(A, prolongators, fixed, coarse_solver, omega, smoothed_
             P.data[fixed.reshape(-1, P.blocksize[0]).repeat(np.diff(P.indptr), axis=0)] = 0.0
         if k < smoothed_levels:
             P = _smoothed_prolongator(A, P, omega)
-        level.P = _SingleBSR(P)
-        level.R = _TransposeOf(level.P)
-        coarse = _galerkin(A, level.P)
-        _smooth(level, A, single=k == 0)
-        A = coarse
+        A = _coarsen(level, A, P, single=k == 0)
     level = MultilevelSolver.Level()
     level.A = A
     levels.append(level)
     return MultilevelSolver(levels, coarse_solver=coarse_solver)
+
+
+def _coarsen(level, A, P, single):
+    """The next coarser operator P^T A P (_galerkin), with P kept on
+    ``level`` in single precision (_SingleBSR; rounded before the product),
+    R a view of its transpose, and the level's smoothers (_smooth, A
+    rounded after the product where ``single``)."""
+    level.P = _SingleBSR(P)
+    level.R = _TransposeOf(level.P)
+    coarse = _galerkin(A, level.P)
+    _smooth(level, A, single)
+    return coarse
 
 
 def _smooth(level, A, single):

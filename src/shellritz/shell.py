@@ -34,7 +34,7 @@ from .mesh import CORNER_DEG, Mesh, MeshError
 from .model import check_thickness, level_id, pressure_face
 from .solve import EvaluationError, Solvable
 from .strain_gradient import DKTStrainGradient, coefficient, dkt_active_elements
-from .transfer import interpolate_state, multigrid_levels
+from .transfer import carry_over
 from .validity import dkt_validity
 
 __all__ = ["Shell", "Result"]
@@ -134,7 +134,7 @@ class Shell(Solvable):
         n = mesh.n_nodes
         self.X = mesh.vertices
         self.frames = mesh.frames.copy()
-        self.prolongators = ()          # of the coarser meshes of the last start (transfer.multigrid_levels)
+        self.prolongators = ()          # of the coarser meshes of the last start (transfer.carry_over)
         # growth: G(t) from (G0, G1) by a linear ramp, or a user function of t
         self._G0 = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         self._G1 = np.zeros((n, 3, 3))
@@ -827,8 +827,7 @@ class Shell(Solvable):
             raise TypeError(f"start must be a shellritz Result (of Shell.solve), not {type(result).__name__}")
         if result.t is None:
             raise ValueError("start: the result has no equilibrium state (its solve failed at the start)")
-        U = interpolate_state(result, self)
-        self.prolongators = multigrid_levels(result, self)
+        U, self.prolongators = carry_over(result, self)
         t = float(result.t)
         self.set_parameter(t)
         saved = self.save_point()

@@ -23,7 +23,7 @@ l^2 / R) is carried by ``n_i N_i^T``.
 
 The derivative of this map with respect to the old state
 (interpolation_jacobian) is the prolongation of multigrid over the nested
-meshes a solve started from (multigrid_levels, linalg._geometric_hierarchy).
+meshes a solve started from (carry_over, linalg._geometric_hierarchy).
 """
 
 import numpy as np
@@ -70,28 +70,27 @@ def locate(X_old, tri_old, P):
     return best, lam, dist, score
 
 
-def interpolate_state(result, shell):
-    """The state ``U`` (n, 3, 3) of ``shell`` (set up) interpolated from
-    ``result`` (a Result of a Shell on the same reference surface).  Raises
-    ValueError naming the first node of ``shell`` that lies off the old
-    reference mesh (outside its triangles by more than OUTSIDE in
-    barycentric coordinates, or farther from their plane than their size)."""
-    return interpolate(result.shell, _state_of(result), shell)
-
-
-def multigrid_levels(result, shell):
-    """The prolongators of the nested meshes below ``shell`` for multigrid
-    (linalg.BlockLayout, finest first): from ``result``'s mesh, where it
-    has at most half of ``shell``'s nodes, linearized at its state
-    (interpolation_jacobian, values in single precision: half the memory,
-    the hierarchy rounds them anyway), followed by the levels that
-    ``result``'s shell started from; none otherwise."""
-    old = result.shell
+def carry_over(result, shell):
+    """``result`` (a Result of a Shell on the same reference surface) carried
+    onto ``shell`` (set up): (U, prolongators).  U (n, 3, 3) is its state
+    interpolated onto ``shell``'s nodes.  The prolongators are those of the
+    nested meshes below ``shell`` for multigrid (linalg.BlockLayout, finest
+    first): from ``result``'s mesh, where it has at most half of ``shell``'s
+    nodes, linearized at its state (interpolation_jacobian, values in single
+    precision: half the memory, the hierarchy rounds them anyway), followed
+    by the levels that ``result``'s shell started from; none otherwise.
+    The new nodes are located once for both.  Raises ValueError naming the
+    first node of ``shell`` that lies off the old reference mesh (outside
+    its triangles by more than OUTSIDE in barycentric coordinates, or
+    farther from their plane than their size)."""
+    old, U_old = result.shell, _state_of(result)
+    located = _located(old, shell)
+    U = interpolate(old, U_old, shell, located)
     if 2 * old.mesh.n_nodes > shell.mesh.n_nodes:
-        return ()
-    P = interpolation_jacobian(old, _state_of(result), shell)
+        return U, ()
+    P = interpolation_jacobian(old, U_old, shell, located)
     P.data = P.data.astype(np.float32)
-    return (P, *old.prolongators)
+    return U, (P, *old.prolongators)
 
 
 def _state_of(result):
@@ -104,7 +103,7 @@ def _state_of(result):
 
 def _located(old, shell):
     """(old triangle, barycentric coordinates) of each node of ``shell`` on
-    the reference mesh of ``old`` (interpolate_state's error where a node
+    the reference mesh of ``old`` (carry_over's error where a node
     lies off it)."""
     P = shell.X
     e, lam, dist, score = locate(old.X, old.mesh.triangles, P)
@@ -119,10 +118,11 @@ def _located(old, shell):
     return e, lam
 
 
-def interpolate(old, U_old, shell):
+def interpolate(old, U_old, shell, located=None):
     """The state (n, 3, 3) of ``shell`` interpolated from the state
-    ``U_old`` of the shell ``old`` (module docstring)."""
-    e, lam = _located(old, shell)
+    ``U_old`` of the shell ``old`` (module docstring); ``located``: the
+    new nodes' (old triangle, barycentric coordinates), if known (_located)."""
+    e, lam = _located(old, shell) if located is None else located
     F_old = deformation_gradients(old, U_old)
     nodes = old.mesh.triangles[e]
     F = np.einsum("pi,pikj->pkj", lam, F_old[nodes])
@@ -135,16 +135,17 @@ def interpolate(old, U_old, shell):
     return U
 
 
-def interpolation_jacobian(old, U_old, shell):
+def interpolation_jacobian(old, U_old, shell, located=None):
     """d interpolate(old, U, shell) / dU at U_old: a BSR matrix
     (9 n_new, 9 n_old) of nodal 9 x 9 blocks (a node's DOFs (r, U_1, U_2),
     three per new node: the vertices of its old triangle), the prolongation
     of increments from ``old``'s mesh to ``shell``'s.  With
     n = U_1 x U_2 / |U_1 x U_2|,
     dF_i v = dU_i1 (T_i1.v) + dU_i2 (T_i2.v) + dn_i (N_i.v) and
-    dn = (I - n n^T) (dU_1 x U_2 + U_1 x dU_2) / |U_1 x U_2|."""
+    dn = (I - n n^T) (dU_1 x U_2 + U_1 x dU_2) / |U_1 x U_2|;
+    ``located`` as in interpolate."""
     import scipy.sparse as sp
-    e, lam = _located(old, shell)
+    e, lam = _located(old, shell) if located is None else located
     nodes = old.mesh.triangles[e]                              # (p, 3)
     T, N = old.frames, old.mesh.normals
     c = np.cross(U_old[:, 1], U_old[:, 2])
