@@ -18,6 +18,36 @@ import numpy as np
 THREADS = 2
 
 
+def leaf_reference(rings, h_over_l, nested=False, coarsest=11):
+    """The default leaf (meshes/leaf.toml) on shapes.disc(rings) with
+    h = h_over_l / rings, the DKT membrane metric (as the AMG studies were
+    measured; the scene file's is regge since 2026-12-07), set up at its
+    reference state t = 0: (shell, K the Hessian there, prolongators).
+    ``nested``: the prolongators of the discs of rings / 2, rings / 4, ...
+    (at least ``coarsest`` rings, the same thickness) below it, the
+    interpolation of nested iteration linearized at their reference states
+    (transfer.interpolation_jacobian), for multigrid over nested meshes;
+    else None (smoothed aggregation)."""
+    from importlib.resources import files
+    from shellritz import shapes
+    from shellritz.meshdata import Surface
+    from shellritz.scenefile import load_scene
+    from shellritz.transfer import interpolation_jacobian
+    scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+
+    def reference(r):
+        shell = scene.build(Surface(shapes.disc(r)), thickness=h_over_l / rings, membrane="dkt")[0]
+        shell._setup()           # the engine's set-up (solve does it), then the reference state
+        shell.set_parameter(0.0)
+        return shell
+    shells = [reference(rings)]
+    while nested and rings // 2 ** len(shells) >= coarsest:
+        shells.append(reference(rings // 2 ** len(shells)))
+    K = shells[0].evaluate(shells[0].free_state(), 2)[2]
+    prolongators = [interpolation_jacobian(c, c.U, f) for f, c in zip(shells, shells[1:])] if nested else None
+    return shells[0], K, prolongators
+
+
 def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None):
     """CG on ``finest`` (default K; lower CSR) preconditioned by the solver's
     hierarchy built on K (``options`` over the solver's: theta, omega, max_levels,

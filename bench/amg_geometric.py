@@ -39,33 +39,13 @@ COARSEST_RINGS = 11
 
 CHILD = r"""
 import json, sys
-from importlib.resources import files
-from amg_cg import amg_cg_iterations
-from shellritz import shapes
-from shellritz.meshdata import Surface
-from shellritz.scenefile import load_scene
-from shellritz.transfer import interpolation_jacobian
+from amg_cg import amg_cg_iterations, leaf_reference
 method, rings, ratio, coarsest = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
-scene = load_scene(files("shellritz.meshes") / "leaf.toml")
-
-def reference(r):
-    # the DKT membrane metric, as bench/amg_thickness_ratio.py measures
-    shell = scene.build(Surface(shapes.disc(r)), thickness=ratio / rings, membrane="dkt")[0]
-    shell._setup()
-    shell.set_parameter(0.0)
-    return shell
-shell = reference(rings)
-x = shell.free_state()
-_, _, K = shell.evaluate(x, 2)
-prolongators, options = None, {}
-if method != "sa":
-    shells = [shell]
-    while shells[-1].mesh.n_nodes > 1 and rings // 2 ** len(shells) >= coarsest:
-        shells.append(reference(rings // 2 ** len(shells)))
-    prolongators = [interpolation_jacobian(c, c.U, f) for f, c in zip(shells, shells[1:])]
-    options = dict(smoothed_levels={"geometric": 0, "geometric-smoothed-finest": 1}.get(method, len(prolongators)))
+shell, K, prolongators = leaf_reference(rings, ratio, nested=method != "sa", coarsest=coarsest)
+options = {} if method == "sa" else dict(
+    smoothed_levels={"geometric": 0, "geometric-smoothed-finest": 1}.get(method, len(prolongators)))
 m = amg_cg_iterations(K, shell.block_layout(), options=options, prolongators=prolongators)
-print("ROW " + json.dumps(dict(method=method, rings=rings, n_triangles=int(shell.mesh.n_triangles), dofs=int(len(x)),
+print("ROW " + json.dumps(dict(method=method, rings=rings, n_triangles=int(shell.mesh.n_triangles), dofs=int(K.shape[0]),
                                h_over_l=ratio, cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"],
                                cg_s=m["cg_s"], levels=m["levels"], complexity=m["complexity"])), flush=True)
 """

@@ -27,11 +27,19 @@ level's smoother replaced, the rest of the hierarchy unchanged:
   graph of the aggregation, symmetric strength with the product's theta:
   a purely algebraic patch).
 
-Rows: rings, n_triangles, h_over_l, smoother, cg_its, reason, setup_s
-(hierarchy and smoother), cg_s, smoother_gb (the dense patch inverses, in
-double precision), levels.  Writes bench/results/amg_smoother.json.
+The coarse levels (``--hierarchies``): ``sa``, the product's smoothed
+aggregation (18 near-null vectors, three levels); ``nested``, the product's
+multigrid over nested meshes (linalg._geometric_hierarchy on the discs of
+rings / 2, rings / 4, ... down to 11 rings: amg_cg.leaf_reference).
+
+Rows: rings, n_triangles, h_over_l, smoother, hierarchy, cg_its, reason,
+setup_s (hierarchy and smoother), cg_s, smoother_gb (the dense patch
+inverses, in double precision), levels, and the error the cycle reduces
+least (worst_mode: mode_rate, mode_in_plane, mode_outer, mode_oscillation,
+mode_rayleigh; rows from before 2026-12-07 evening have none).  Writes
+bench/results/amg_smoother.json.
 Run:  python bench/amg_smoother.py [--rings 45 91] [--ratios 3.6 7.3]
-      [--smoothers block-gs aggregates pairs ring row strong]
+      [--smoothers block-gs aggregates pairs ring row strong] [--hierarchies sa nested]
 """
 
 import argparse
@@ -45,6 +53,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 SMOOTHERS = ("block-gs", "aggregates", "pairs", "ring", "row", "strong")
+HIERARCHIES = ("sa", "nested")
 
 
 @nb.njit(cache=True)
@@ -156,30 +165,70 @@ def install(kind, triangles, record):
     linalg._smooth = smooth
 
 
+def worst_mode(shell, K, prolongators, cycles=30):
+    """The error one W-cycle reduces least (the stationary iteration
+    e <- (I - B K) e from a random e, free rigid motions projected out; B a
+    cycle of the hierarchy as built now, smoother included) and what it
+    looks like: mode_rate, the energy-norm reduction of the last cycle;
+    mode_in_plane, the share of its squared nodal values along the
+    reference plane (x, y); mode_outer, the share on the nodes of the outer
+    fifth of the disc's radius; mode_oscillation, |grad u| l / |u| of its
+    positions u (gradients per triangle, root mean squares; about 1: it
+    changes from node to node, l / R: smooth); mode_rayleigh, e^T K e over
+    e^T D e, D the nodal 9 x 9 diagonal blocks (near 1 the smoother damps
+    it; small, the coarse levels must)."""
+    from pyamg.util.utils import get_block_diag
+    from shellritz.linalg import free_rigid_modes, lower_matvec, make_linear_solver, projector
+    layout = shell.block_layout()
+    if prolongators is not None:
+        layout = layout._replace(prolongators=prolongators)
+    project = projector(free_rigid_modes(layout)) or (lambda v: v)
+    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, layout)
+    amg.factorize(K)
+    cycle, matvec = amg.preconditioner(), lower_matvec(K)
+    energy = lambda v: float(v @ matvec(v))
+    e = project(np.random.default_rng(1).standard_normal(K.shape[0]))
+    e /= np.sqrt(energy(e))
+    for _ in range(cycles):
+        e = project(e - cycle(matvec(e)))
+        rate = np.sqrt(energy(e))
+        e /= rate
+    D = get_block_diag(amg._embed(K), blocksize=9, inv_flag=False)
+    amg.release()
+    full = np.zeros(layout.n_full)
+    full[layout.free] = e
+    E = full.reshape(-1, 3, 3)                         # node, (r, a_1, a_2), component
+    X, tri = shell.X, shell.mesh.triangles
+    size = (E ** 2).sum(axis=(1, 2))
+    u = E[:, 0]
+    edges = np.stack([X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]], axis=2)[:, :2]
+    du = np.stack([u[tri[:, 1]] - u[tri[:, 0]], u[tri[:, 2]] - u[tri[:, 0]]], axis=2)
+    grad_u = np.sqrt((np.einsum("tkj,tjl->tkl", du, np.linalg.inv(edges)) ** 2).sum(axis=(1, 2)).mean())
+    radius = np.linalg.norm(X[:, :2], axis=1)
+    f = full.reshape(-1, 9)
+    return dict(mode_rate=float(rate), mode_in_plane=float((E[:, :, :2] ** 2).sum() / size.sum()),
+                mode_outer=float(size[radius > 0.8 * radius.max()].sum() / size.sum()),
+                mode_oscillation=float(grad_u * np.sqrt(2.0 * shell.mesh.areas.mean())
+                                       / np.sqrt((u ** 2).sum(axis=1).mean())),
+                mode_rayleigh=float(1.0 / np.einsum("ni,nij,nj->", f, D, f)))
+
+
 CHILD = r"""
 import json, sys
-from importlib.resources import files
-from amg_cg import amg_cg_iterations
-from amg_smoother import install
-from shellritz import linalg, shapes
-from shellritz.meshdata import Surface
-from shellritz.scenefile import load_scene
-rings, ratio, kind = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
-scene = load_scene(files("shellritz.meshes") / "leaf.toml")
-# the DKT membrane metric, as the results were measured (the scene file's is regge since 2026-12-07)
-shell = scene.build(Surface(shapes.disc(rings)), thickness=ratio / rings, membrane="dkt")[0]
-shell._setup()
-shell.set_parameter(0.0)
-x = shell.free_state()
-_, _, K = shell.evaluate(x, 2)
+from amg_cg import amg_cg_iterations, leaf_reference
+from amg_smoother import install, worst_mode
+from shellritz import linalg
+rings, ratio, kind, hierarchy = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3], sys.argv[4]
+shell, K, prolongators = leaf_reference(rings, ratio, nested=hierarchy == "nested")
 record = dict(smoother_setup_s=0.0, smoother_gb=0.0)
 if kind != "block-gs":
     install(kind, shell.mesh.triangles, record)
 linalg._available_memory = lambda: 1e12      # the full 18-vector hierarchy in every case
-m = amg_cg_iterations(K, shell.block_layout())
+m = amg_cg_iterations(K, shell.block_layout(), prolongators=prolongators)
 print("ROW " + json.dumps(dict(rings=rings, n_triangles=int(shell.mesh.n_triangles), h_over_l=ratio,
-                               smoother=kind, cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"],
-                               cg_s=m["cg_s"], levels=m["levels"], **record)), flush=True)
+                               smoother=kind, hierarchy=hierarchy, cg_its=m["its"], reason=m["reason"],
+                               setup_s=m["setup_s"], cg_s=m["cg_s"], levels=m["levels"], **record,
+                               **worst_mode(shell, K, prolongators))), flush=True)
 """
 
 
@@ -188,13 +237,15 @@ def main():
     ap.add_argument("--rings", type=int, nargs="+", default=[45, 91])
     ap.add_argument("--ratios", type=float, nargs="+", default=[3.6, 7.3])
     ap.add_argument("--smoothers", nargs="+", default=list(SMOOTHERS), choices=SMOOTHERS)
+    ap.add_argument("--hierarchies", nargs="+", default=["sa"], choices=HIERARCHIES)
     args = ap.parse_args()
     sys.path.insert(0, str(HERE))
     from amg_cg import run_cases
     run_cases(RESULTS / "amg_smoother.json",
               "AMG CG iterations to 1e-8 on the leaf's reference stiffness: finest-level smoothers", CHILD,
-              [dict(rings=rings, h_over_l=ratio, smoother=kind)
-               for rings in args.rings for ratio in args.ratios for kind in args.smoothers])
+              [dict(rings=rings, h_over_l=ratio, smoother=kind, hierarchy=hierarchy)
+               for rings in args.rings for ratio in args.ratios for kind in args.smoothers
+               for hierarchy in args.hierarchies])
 
 
 if __name__ == "__main__":
