@@ -1005,9 +1005,9 @@ def _galerkin_rows(lo, hi, t_ptr, t_row, t_blk, ptr, idx, a_ptr, a_idx, a_data, 
     fine rows i of P's column I, one W per fine node j they reach, then
     W_j P_jJ into block (I, J): the second, dearer product once per j, not
     once per pair (i, j) (the 50k leaf's product with its finest smoothed
-    prolongator, about 20 blocks per row: 7.1 -> 2.0 s).  slot[J] is the position of block (I, J),
-    w_of[j] the position of W_j (valid where seen[j] == I) while row I is
-    summed.  Loops, not @: P is single, A double precision."""
+    prolongator, about 10 blocks per row: 7.1 -> 2.0 s).  slot[J] is the
+    position of block (I, J), w_of[j] the position of W_j (valid where
+    seen[j] == I) while row I is summed.  Loops, not @: P is single, A double precision."""
     n_fine = len(a_ptr) - 1
     slot = np.empty(len(t_ptr) - 1, np.int64)
     seen = np.full(n_fine, -1, np.int64)
