@@ -48,7 +48,7 @@ def leaf_reference(rings, h_over_l, nested=False, coarsest=11):
     return shells[0], K, prolongators
 
 
-def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None):
+def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None, inspect=None):
     """CG on ``finest`` (default K; lower CSR) preconditioned by the solver's
     hierarchy built on K (``options`` over the solver's: theta, omega, max_levels,
     max_coarse, smoothed_levels; AMGSolver._build; ``prolongators``: the
@@ -57,7 +57,8 @@ def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None):
     matrix.  Returns dict(its, reason, setup_s, cg_s, levels, coarsest_blocks,
     complexity) (pyamg's count of the coarsest level: nodal blocks or
     aggregates; the operator complexity: the values of all levels' operators
-    over the finest one's)."""
+    over the finest one's); ``inspect(amg)``, if given, looks at the solver
+    before its hierarchy is released and returns more entries of that dict."""
     from shellritz.linalg import (_smooth, free_rigid_modes, lower_matvec,
                                   make_linear_solver, projector, steihaug_cg)
     finest = K if finest is None else finest
@@ -81,6 +82,8 @@ def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None):
     out = dict(its=info["iterations"], reason=info["reason"], setup_s=setup,
                cg_s=time.perf_counter() - t, levels=len(amg._ml.levels), coarsest_blocks=int(blocks),
                complexity=sum(lv.A.data.size for lv in amg._ml.levels) / amg._ml.levels[0].A.data.size)
+    if inspect is not None:
+        out.update(inspect(amg))
     amg.release()
     return out
 

@@ -165,10 +165,10 @@ def install(kind, triangles, record):
     linalg._smooth = smooth
 
 
-def worst_mode(shell, K, prolongators, cycles=30):
+def worst_mode(shell, K, amg, cycles=30):
     """The error one W-cycle reduces least (the stationary iteration
     e <- (I - B K) e from a random e, free rigid motions projected out; B a
-    cycle of the hierarchy as built now, smoother included) and what it
+    cycle of the solver ``amg``'s hierarchy, smoother included) and what it
     looks like: mode_rate, the energy-norm reduction of the last cycle;
     mode_in_plane, the share of its squared nodal values along the
     reference plane (x, y); mode_outer, the share on the nodes of the outer
@@ -178,13 +178,9 @@ def worst_mode(shell, K, prolongators, cycles=30):
     e^T D e, D the nodal 9 x 9 diagonal blocks (near 1 the smoother damps
     it; small, the coarse levels must)."""
     from pyamg.util.utils import get_block_diag
-    from shellritz.linalg import free_rigid_modes, lower_matvec, make_linear_solver, projector
+    from shellritz.linalg import free_rigid_modes, lower_matvec, projector
     layout = shell.block_layout()
-    if prolongators is not None:
-        layout = layout._replace(prolongators=prolongators)
     project = projector(free_rigid_modes(layout)) or (lambda v: v)
-    amg = make_linear_solver("amg", K.shape[0], K.indptr, K.indices, layout)
-    amg.factorize(K)
     cycle, matvec = amg.preconditioner(), lower_matvec(K)
     energy = lambda v: float(v @ matvec(v))
     e = project(np.random.default_rng(1).standard_normal(K.shape[0]))
@@ -194,7 +190,6 @@ def worst_mode(shell, K, prolongators, cycles=30):
         rate = np.sqrt(energy(e))
         e /= rate
     D = get_block_diag(amg._embed(K), blocksize=9, inv_flag=False)
-    amg.release()
     full = np.zeros(layout.n_full)
     full[layout.free] = e
     E = full.reshape(-1, 3, 3)                         # node, (r, a_1, a_2), component
@@ -224,11 +219,12 @@ record = dict(smoother_setup_s=0.0, smoother_gb=0.0)
 if kind != "block-gs":
     install(kind, shell.mesh.triangles, record)
 linalg._available_memory = lambda: 1e12      # the full 18-vector hierarchy in every case
-m = amg_cg_iterations(K, shell.block_layout(), prolongators=prolongators)
+m = amg_cg_iterations(K, shell.block_layout(), prolongators=prolongators,
+                      inspect=lambda amg: worst_mode(shell, K, amg))
 print("ROW " + json.dumps(dict(rings=rings, n_triangles=int(shell.mesh.n_triangles), h_over_l=ratio,
                                smoother=kind, hierarchy=hierarchy, cg_its=m["its"], reason=m["reason"],
                                setup_s=m["setup_s"], cg_s=m["cg_s"], levels=m["levels"], **record,
-                               **worst_mode(shell, K, prolongators))), flush=True)
+                               **{k: v for k, v in m.items() if k.startswith("mode_")})), flush=True)
 """
 
 
