@@ -18,7 +18,7 @@ import numpy as np
 THREADS = 2
 
 
-def leaf_reference(rings, h_over_l, nested=False, coarsest=11):
+def leaf_reference(rings, h_over_l, nested=False, coarsest=11, supports="clamp"):
     """The default leaf (meshes/leaf.toml) on shapes.disc(rings) with
     h = h_over_l / rings, the DKT membrane metric (as the AMG studies were
     measured; the scene file's is regge since 2026-12-07), set up at its
@@ -27,13 +27,23 @@ def leaf_reference(rings, h_over_l, nested=False, coarsest=11):
     (at least ``coarsest`` rings, the same thickness) below it, the
     interpolation of nested iteration linearized at their reference states
     (transfer.interpolation_jacobian), for multigrid over nested meshes;
-    else None (smoothed aggregation)."""
+    else None (smoothed aggregation).  ``supports``: "clamp", the scene's
+    (its centre node clamped), or "rigid", a free body whose rigid motions
+    the 3-2-1 supports of Shell.remove_rigid_motions take away (the scene
+    file's ``[boundary] supports = "rigid"``)."""
+    import tomllib
     from importlib.resources import files
     from shellritz import shapes
     from shellritz.meshdata import Surface
-    from shellritz.scenefile import load_scene
+    from shellritz.scenefile import parse_scene
     from shellritz.transfer import interpolation_jacobian
-    scene = load_scene(files("shellritz.meshes") / "leaf.toml")
+    path = files("shellritz.meshes") / "leaf.toml"
+    data = tomllib.loads(path.read_text())
+    if supports == "rigid":
+        data["boundary"] = dict(supports="rigid")
+    elif supports != "clamp":
+        raise ValueError(f"supports={supports!r}: 'clamp' or 'rigid'")
+    scene = parse_scene(data, path.parent, source=str(path))
 
     def reference(r):
         shell = scene.build(Surface(shapes.disc(r)), thickness=h_over_l / rings, membrane="dkt")[0]
@@ -51,7 +61,7 @@ def leaf_reference(rings, h_over_l, nested=False, coarsest=11):
 def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None, inspect=None):
     """CG on ``finest`` (default K; lower CSR) preconditioned by the solver's
     hierarchy built on K (``options`` over the solver's: theta, omega, max_levels,
-    max_coarse, smoothed_levels; AMGSolver._build; ``prolongators``: the
+    max_coarse, smoothed_levels, cycle; AMGSolver._build; ``prolongators``: the
     geometric hierarchy over nested meshes instead of smoothed aggregation); with
     ``finest`` the hierarchy's finest level (residuals and smoother) is that
     matrix.  Returns dict(its, reason, setup_s, cg_s, levels, coarsest_blocks,
@@ -86,6 +96,23 @@ def amg_cg_iterations(K, layout, finest=None, options=None, prolongators=None, i
         out.update(inspect(amg))
     amg.release()
     return out
+
+
+def study(doc, name, benchmark, code, axes, extra=None):
+    """The command line of an AMG study (bench/amg_*.py): per axis (flag,
+    key, type, defaults, choices or None) an option --flag taking one or
+    more values; every combination of them is a case (a dict key: value
+    in the axes' order, the child's arguments), run by run_cases into
+    bench/results/``name``."""
+    import argparse
+    import itertools
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    for flag, _, kind, defaults, choices in axes:
+        ap.add_argument(f"--{flag}", type=kind, nargs="+", default=list(defaults), choices=choices)
+    args = vars(ap.parse_args())
+    values = [args[flag.replace("-", "_")] for flag, *_ in axes]
+    cases = [dict(zip([key for _, key, *_ in axes], combo)) for combo in itertools.product(*values)]
+    run_cases(Path(__file__).resolve().parent / "results" / name, benchmark, code, cases, extra)
 
 
 def run_cases(path, benchmark, code, cases, extra=None):

@@ -5,8 +5,8 @@ found that the AMG iterations follow h/l, not the mesh size).
 
 The measure of bench/amg_thickness_ratio.py (the leaf, meshes/leaf.toml, on
 shapes.disc(rings) at h = ratio / rings, its reference stiffness, CG to a
-relative residual of 1e-8, one W-cycle per iteration) with four
-hierarchies:
+relative residual of 1e-8, one W-cycle per iteration, also where the
+product cycles differently: bench/amg_cycle.py) with four hierarchies:
 
 * ``sa``: the product's smoothed aggregation (AMGSolver: 18 near-null
   vectors, three levels);
@@ -28,12 +28,6 @@ Run:  python bench/amg_geometric.py [--rings 45 91] [--ratios 0.5 1.8 3.6 7.3 14
       [--methods sa geometric geometric-smoothed-finest geometric-smoothed]
 """
 
-import argparse
-import sys
-from pathlib import Path
-
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
 METHODS = ("sa", "geometric", "geometric-smoothed-finest", "geometric-smoothed")
 COARSEST_RINGS = 11
 
@@ -42,8 +36,8 @@ import json, sys
 from amg_cg import amg_cg_iterations, leaf_reference
 method, rings, ratio, coarsest = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
 shell, K, prolongators = leaf_reference(rings, ratio, nested=method != "sa", coarsest=coarsest)
-options = {} if method == "sa" else dict(
-    smoothed_levels={"geometric": 0, "geometric-smoothed-finest": 1}.get(method, len(prolongators)))
+options = dict(cycle="W") if method == "sa" else dict(
+    cycle="W", smoothed_levels={"geometric": 0, "geometric-smoothed-finest": 1}.get(method, len(prolongators)))
 m = amg_cg_iterations(K, shell.block_layout(), options=options, prolongators=prolongators)
 print("ROW " + json.dumps(dict(method=method, rings=rings, n_triangles=int(shell.mesh.n_triangles), dofs=int(K.shape[0]),
                                h_over_l=ratio, cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"],
@@ -52,18 +46,13 @@ print("ROW " + json.dumps(dict(method=method, rings=rings, n_triangles=int(shell
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rings", type=int, nargs="+", default=[45, 91])
-    ap.add_argument("--ratios", type=float, nargs="+", default=[0.5, 1.8, 3.6, 7.3, 14.6])
-    ap.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS))
-    args = ap.parse_args()
-    sys.path.insert(0, str(HERE))
-    from amg_cg import run_cases
-    run_cases(RESULTS / "amg_geometric.json",
-              "CG iterations to 1e-8 on the leaf's reference stiffness: smoothed aggregation "
-              "against multigrid over nested meshes", CHILD,
-              [dict(method=m, rings=r, h_over_l=ratio, coarsest=COARSEST_RINGS)
-               for r in args.rings for ratio in args.ratios for m in args.methods])
+    from amg_cg import study
+    study(__doc__, "amg_geometric.json",
+          "CG iterations to 1e-8 on the leaf's reference stiffness: smoothed aggregation "
+          "against multigrid over nested meshes", CHILD,
+          [("methods", "method", str, METHODS, METHODS), ("rings", "rings", int, [45, 91], None),
+           ("ratios", "h_over_l", float, [0.5, 1.8, 3.6, 7.3, 14.6], None),
+           ("coarsest", "coarsest", int, [COARSEST_RINGS], None)])
 
 
 if __name__ == "__main__":

@@ -31,13 +31,6 @@ those of the same h and rings already there).
 Run:  python bench/amg_growth.py [--rings 45 91 129] [--thickness 0.02 0.005]
 """
 
-import argparse
-import sys
-from pathlib import Path
-
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
-
 CHILD = r"""
 import json, sys
 import numpy as np
@@ -80,14 +73,9 @@ for name, Kh, finest, options in variants:
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rings", type=int, nargs="+", default=[45, 91, 129])
-    ap.add_argument("--thickness", type=float, nargs="+", default=[0.02, 0.005])
-    args = ap.parse_args()
-    sys.path.insert(0, str(HERE))
-    from amg_cg import run_cases
-    run_cases(RESULTS / "amg_growth.json", "AMG CG iterations to 1e-8 on the leaf Hessian at the solution",
-              CHILD, [dict(rings=rings, h=h) for h in args.thickness for rings in args.rings])
+    from amg_cg import study
+    study(__doc__, "amg_growth.json", "AMG CG iterations to 1e-8 on the leaf Hessian at the solution", CHILD,
+          [("rings", "rings", int, [45, 91, 129], None), ("thickness", "h", float, [0.02, 0.005], None)])
 
 
 if __name__ == "__main__":

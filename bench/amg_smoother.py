@@ -31,29 +31,33 @@ The coarse levels (``--hierarchies``): ``sa``, the product's smoothed
 aggregation (18 near-null vectors, three levels); ``nested``, the product's
 multigrid over nested meshes (linalg._geometric_hierarchy on the discs of
 rings / 2, rings / 4, ... down to 11 rings: amg_cg.leaf_reference).
+The supports (``--supports``): ``clamp``, the scene's (its centre node
+clamped), or ``rigid``, the disc as a free body (3-2-1 supports that take
+away only the rigid motions).  With the clamp the disc has a soft turn about
+that node (the nodal tangent derivatives of a single node hold it), which
+a cycle reduces about as slowly as the worst mode of the free body: the two
+share the rate, and worst_mode picks either (rows before 2026-12-07,
+late evening, are all ``clamp``).
 
 Rows: rings, n_triangles, h_over_l, smoother, hierarchy, cg_its, reason,
 setup_s (hierarchy and smoother), cg_s, smoother_gb (the dense patch
 inverses, in double precision), levels, and the error the cycle reduces
 least (worst_mode: mode_rate, mode_in_plane, mode_outer, mode_oscillation,
-mode_rayleigh; rows from before 2026-12-07 evening have none).  Writes
+mode_rayleigh, mode_strain_gradient, mode_diag_strain_gradient; rows from before
+2026-12-07 evening have none, the last two are since late evening), supports.  Writes
 bench/results/amg_smoother.json.
 Run:  python bench/amg_smoother.py [--rings 45 91] [--ratios 3.6 7.3]
       [--smoothers block-gs aggregates pairs ring row strong] [--hierarchies sa nested]
 """
 
-import argparse
-import sys
 import time
-from pathlib import Path
 
 import numba as nb
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
 SMOOTHERS = ("block-gs", "aggregates", "pairs", "ring", "row", "strong")
 HIERARCHIES = ("sa", "nested")
+SUPPORTS = ("clamp", "rigid")
 
 
 @nb.njit(cache=True)
@@ -166,7 +170,7 @@ def install(kind, triangles, record):
 
 
 def worst_mode(shell, K, amg, cycles=30):
-    """The error one W-cycle reduces least (the stationary iteration
+    """The error one cycle reduces least (the stationary iteration
     e <- (I - B K) e from a random e, free rigid motions projected out; B a
     cycle of the solver ``amg``'s hierarchy, smoother included) and what it
     looks like: mode_rate, the energy-norm reduction of the last cycle;
@@ -176,7 +180,9 @@ def worst_mode(shell, K, amg, cycles=30):
     positions u (gradients per triangle, root mean squares; about 1: it
     changes from node to node, l / R: smooth); mode_rayleigh, e^T K e over
     e^T D e, D the nodal 9 x 9 diagonal blocks (near 1 the smoother damps
-    it; small, the coarse levels must)."""
+    it; small, the coarse levels must); mode_strain_gradient and
+    mode_diag_strain_gradient, the strain-gradient term's share of e^T K e and
+    of e^T D e (the Hessian assembled once more without it)."""
     from pyamg.util.utils import get_block_diag
     from shellritz.linalg import free_rigid_modes, lower_matvec, projector
     layout = shell.block_layout()
@@ -190,6 +196,10 @@ def worst_mode(shell, K, amg, cycles=30):
         rate = np.sqrt(energy(e))
         e /= rate
     D = get_block_diag(amg._embed(K), blocksize=9, inv_flag=False)
+    term, shell.strain_gradient = shell.strain_gradient, None
+    K0 = shell.evaluate(shell.free_state(), 2)[2]
+    shell.strain_gradient = term
+    D0 = get_block_diag(amg._embed(K0), blocksize=9, inv_flag=False)
     full = np.zeros(layout.n_full)
     full[layout.free] = e
     E = full.reshape(-1, 3, 3)                         # node, (r, a_1, a_2), component
@@ -205,7 +215,10 @@ def worst_mode(shell, K, amg, cycles=30):
                 mode_outer=float(size[radius > 0.8 * radius.max()].sum() / size.sum()),
                 mode_oscillation=float(grad_u * np.sqrt(2.0 * shell.mesh.areas.mean())
                                        / np.sqrt((u ** 2).sum(axis=1).mean())),
-                mode_rayleigh=float(1.0 / np.einsum("ni,nij,nj->", f, D, f)))
+                mode_rayleigh=float(1.0 / np.einsum("ni,nij,nj->", f, D, f)),
+                mode_strain_gradient=float(1.0 - e @ lower_matvec(K0)(e)),
+                mode_diag_strain_gradient=float(1.0 - np.einsum("ni,nij,nj->", f, D0, f)
+                                           / np.einsum("ni,nij,nj->", f, D, f)))
 
 
 CHILD = r"""
@@ -213,35 +226,29 @@ import json, sys
 from amg_cg import amg_cg_iterations, leaf_reference
 from amg_smoother import install, worst_mode
 from shellritz import linalg
-rings, ratio, kind, hierarchy = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3], sys.argv[4]
-shell, K, prolongators = leaf_reference(rings, ratio, nested=hierarchy == "nested")
+rings, ratio, kind, hierarchy, supports = (int(sys.argv[1]), float(sys.argv[2]), sys.argv[3], sys.argv[4],
+                                           sys.argv[5])
+shell, K, prolongators = leaf_reference(rings, ratio, nested=hierarchy == "nested", supports=supports)
 record = dict(smoother_setup_s=0.0, smoother_gb=0.0)
 if kind != "block-gs":
     install(kind, shell.mesh.triangles, record)
 linalg._available_memory = lambda: 1e12      # the full 18-vector hierarchy in every case
-m = amg_cg_iterations(K, shell.block_layout(), prolongators=prolongators,
+m = amg_cg_iterations(K, shell.block_layout(), options=dict(cycle="W"), prolongators=prolongators,
                       inspect=lambda amg: worst_mode(shell, K, amg))
 print("ROW " + json.dumps(dict(rings=rings, n_triangles=int(shell.mesh.n_triangles), h_over_l=ratio,
-                               smoother=kind, hierarchy=hierarchy, cg_its=m["its"], reason=m["reason"],
+                               smoother=kind, hierarchy=hierarchy, supports=supports, cg_its=m["its"],
+                               reason=m["reason"],
                                setup_s=m["setup_s"], cg_s=m["cg_s"], levels=m["levels"], **record,
                                **{k: v for k, v in m.items() if k.startswith("mode_")})), flush=True)
 """
 
-
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rings", type=int, nargs="+", default=[45, 91])
-    ap.add_argument("--ratios", type=float, nargs="+", default=[3.6, 7.3])
-    ap.add_argument("--smoothers", nargs="+", default=list(SMOOTHERS), choices=SMOOTHERS)
-    ap.add_argument("--hierarchies", nargs="+", default=["sa"], choices=HIERARCHIES)
-    args = ap.parse_args()
-    sys.path.insert(0, str(HERE))
-    from amg_cg import run_cases
-    run_cases(RESULTS / "amg_smoother.json",
-              "AMG CG iterations to 1e-8 on the leaf's reference stiffness: finest-level smoothers", CHILD,
-              [dict(rings=rings, h_over_l=ratio, smoother=kind, hierarchy=hierarchy)
-               for rings in args.rings for ratio in args.ratios for kind in args.smoothers
-               for hierarchy in args.hierarchies])
+    from amg_cg import study
+    study(__doc__, "amg_smoother.json",
+          "AMG CG iterations to 1e-8 on the leaf's reference stiffness: finest-level smoothers", CHILD,
+          [("rings", "rings", int, [45, 91], None), ("ratios", "h_over_l", float, [3.6, 7.3], None),
+           ("smoothers", "smoother", str, SMOOTHERS, SMOOTHERS),
+           ("hierarchies", "hierarchy", str, ["sa"], HIERARCHIES), ("supports", "supports", str, ["clamp"], SUPPORTS)])
 
 
 if __name__ == "__main__":

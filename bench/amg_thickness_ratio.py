@@ -26,13 +26,6 @@ replace those of the same rings and ratio).
 Run:  python bench/amg_thickness_ratio.py [--rings 45 91 129] [--ratios 0.5 1.8 3.6 7.3]
 """
 
-import argparse
-import sys
-from pathlib import Path
-
-HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results"
-
 CHILD = r"""
 import json, sys
 from amg_cg import amg_cg_iterations, leaf_reference
@@ -71,18 +64,13 @@ BEFORE_DIAGONAL = [dict(rings=rings, n_triangles=n, h_over_l=r, cg_its=i)
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rings", type=int, nargs="+", default=[45, 91, 129])
-    ap.add_argument("--ratios", type=float, nargs="+", default=[0.5, 1.8, 3.6, 7.3])
-    args = ap.parse_args()
-    sys.path.insert(0, str(HERE))
-    from amg_cg import run_cases
-    run_cases(RESULTS / "amg_thickness_ratio.json",
-              "AMG CG iterations to 1e-8 on the leaf's reference stiffness against h/l", CHILD,
-              [dict(rings=rings, h_over_l=ratio) for rings in args.rings for ratio in args.ratios],
-              extra={"before": {"commit": "539d236", "rows": BEFORE},
-                     "before_near_null": {"commit": "64b8d37", "rows": BEFORE_NEAR_NULL},
-                     "before_diagonal": {"commit": "4a70aae", "rows": BEFORE_DIAGONAL}})
+    from amg_cg import study
+    study(__doc__, "amg_thickness_ratio.json",
+          "AMG CG iterations to 1e-8 on the leaf's reference stiffness against h/l", CHILD,
+          [("rings", "rings", int, [45, 91, 129], None), ("ratios", "h_over_l", float, [0.5, 1.8, 3.6, 7.3], None)],
+          extra={"before": {"commit": "539d236", "rows": BEFORE},
+                 "before_near_null": {"commit": "64b8d37", "rows": BEFORE_NEAR_NULL},
+                 "before_diagonal": {"commit": "4a70aae", "rows": BEFORE_DIAGONAL}})
 
 
 if __name__ == "__main__":

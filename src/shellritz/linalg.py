@@ -139,6 +139,21 @@ AMG_ONE_LEVEL_BLOCKS = 3000
 # iterations, but at 50k triangles and h/l = 14.6 31 against 47, for
 # 1.2-1.35 times the operators' memory and 4-13 times the set-up
 GEOMETRIC_SMOOTHED_LEVELS = 1
+# the multigrid cycle (_cycle; AMG option ``cycle``): "W", every coarser
+# level visited twice by its parent; "V", once; "VW", the second level once
+# from the finest and the coarser ones twice.  Smoothed aggregation uses
+# "W" (its coarser levels are small: V-cycles took 77 CG iterations where
+# W-cycles took 56, above); multigrid over nested meshes "VW": its second
+# operator has as many blocks as the finest (the smoothed finest
+# prolongator has about 10 blocks per row; 50k leaf 328k against 323k), so
+# that visiting it twice makes a cycle 1.5-1.7 times as dear.  Measured on
+# the leaf's reference stiffness (bench/amg_cycle.py, CG to 1e-8, 2 threads;
+# iterations W / V / VW): 50k triangles, h/l = 3.6: 18 / 19 / 19, 7.3:
+# 26 / 35 / 30; 100k, 3.6: 19 / 20 / 19, 7.3: 27 / 36 / 31; CG time of VW
+# 0.65-0.75 of W's, of V 0.62-0.83 (V loses where h/l is large).
+CYCLES = {"W": (2, 2), "V": (1, 1), "VW": (1, 2)}   # visits of the second level, of the coarser ones
+NESTED_CYCLE = "VW"
+SA_CYCLE = "W"
 # the CG iterations a rebuild of the hierarchy is measured against are at
 # least these (AMGSolver.note_iterations: a first solve cut on the
 # trust-region boundary after one iteration would make any later one of 8
@@ -603,14 +618,18 @@ class AMGSolver:
         coarse = _CoarseDirect()
         opts = dict(theta=AMG_STRENGTH_THETA, omega=4.0 / 3.0, max_levels=AMG_MAX_LEVELS,
                     max_coarse=AMG_ONE_LEVEL_BLOCKS if self.one_level else AMG_COARSE_BLOCKS,
-                    smoothed_levels=GEOMETRIC_SMOOTHED_LEVELS)
+                    smoothed_levels=GEOMETRIC_SMOOTHED_LEVELS, cycle=None)
         unknown = set(self.options) - set(opts)
         if unknown:
             raise ValueError(f"AMG options {sorted(unknown)}: choose from {sorted(opts)}")
         opts.update(self.options)
         smoothed_levels = opts.pop("smoothed_levels")
         self.note = None
-        if self.prolongators and not self.one_level:
+        nested = bool(self.prolongators) and not self.one_level
+        cycle = opts.pop("cycle") or (NESTED_CYCLE if nested else SA_CYCLE)
+        if cycle not in CYCLES:
+            raise ValueError(f"AMG option cycle={cycle!r}: choose from {sorted(CYCLES)}")
+        if nested:
             fixed = np.ones(self.n_full, bool)
             fixed[self.free_full] = False
             ml = _geometric_hierarchy(A, self.prolongators, fixed, coarse, opts["omega"], smoothed_levels)
@@ -624,6 +643,7 @@ class AMGSolver:
                              "(not enough memory for all; more CG iterations)")
             ml = _smoothed_aggregation(A, B, coarse, **opts)
         ml.coarse_direct = coarse
+        ml.visits = CYCLES[cycle]
         self._previous, self._ml = self._ml, ml
         self._its_at_build = None
         self.builds += 1
@@ -673,9 +693,13 @@ class AMGSolver:
         def cycle(r):
             full = np.zeros(nf)
             full[free] = r
-            return ml.solve(full, x0=np.zeros(nf), tol=1e-30, maxiter=1, cycle="W")[free]
+            if len(ml.levels) == 1:
+                return ml.coarse_solver(ml.levels[0].A, full)[free]
+            x = np.zeros(nf)
+            _cycle(ml, 0, x, full)
+            return x[free]
 
-        def apply(r):                       # one W-cycle per vector
+        def apply(r):                       # one cycle per vector
             return cycle(r) if r.ndim == 1 else np.column_stack([cycle(c) for c in r.T])
         return apply
 
@@ -692,6 +716,29 @@ class AMGSolver:
         """Free a hierarchy's coarse factor (PARDISO keeps it until told)."""
         if ml is not None and hasattr(ml, "coarse_direct"):
             ml.coarse_direct.release()
+
+
+def _cycle(ml, level, x, b):
+    """One multigrid cycle on A_level x = b, x in place: presmoothing, the
+    restricted residual corrected from zero on the next level (visited
+    ``ml.visits`` times: CYCLES; solved directly on the coarsest),
+    prolongation, postsmoothing.  With visits (2, 2) it is pyamg's
+    MultilevelSolver.solve(cycle="W", maxiter=1) without that one's two
+    residual norms on the finest level (tested); pyamg has no cycle that
+    visits the levels unequally.  The pre- and postsmoothers are the same
+    symmetric sweeps, so every such cycle is a symmetric positive definite
+    preconditioner."""
+    lv = ml.levels[level]
+    lv.presmoother(lv.A, x, b)
+    coarse_b = lv.R @ (b - lv.A @ x)
+    coarse_x = np.zeros_like(coarse_b)
+    if level == len(ml.levels) - 2:
+        coarse_x[:] = ml.coarse_solver(ml.levels[-1].A, coarse_b)
+    else:
+        for _ in range(ml.visits[level > 0]):
+            _cycle(ml, level + 1, coarse_x, coarse_b)
+    x += lv.P @ coarse_x
+    lv.postsmoother(lv.A, x, b)
 
 
 def _smoothed_aggregation(A, B, coarse_solver, theta, omega, max_levels, max_coarse):
