@@ -36,8 +36,9 @@ import json, sys
 from amg_cg import amg_cg_iterations, leaf_reference
 method, rings, ratio, coarsest = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
 shell, K, prolongators = leaf_reference(rings, ratio, nested=method != "sa", coarsest=coarsest)
-options = dict(cycle="W") if method == "sa" else dict(
-    cycle="W", smoothed_levels={"geometric": 0, "geometric-smoothed-finest": 1}.get(method, len(prolongators)))
+options = dict(cycle="W")
+if method != "sa":
+    options["smoothed_levels"] = {"geometric": 0, "geometric-smoothed-finest": 1}.get(method, len(prolongators))
 m = amg_cg_iterations(K, shell.block_layout(), options=options, prolongators=prolongators)
 print("ROW " + json.dumps(dict(method=method, rings=rings, n_triangles=int(shell.mesh.n_triangles), dofs=int(K.shape[0]),
                                h_over_l=ratio, cg_its=m["its"], reason=m["reason"], setup_s=m["setup_s"],

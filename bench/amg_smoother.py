@@ -242,6 +242,7 @@ print("ROW " + json.dumps(dict(rings=rings, n_triangles=int(shell.mesh.n_triangl
                                **{k: v for k, v in m.items() if k.startswith("mode_")})), flush=True)
 """
 
+
 def main():
     from amg_cg import study
     study(__doc__, "amg_smoother.json",

@@ -823,11 +823,11 @@ def _smooth(level, A, single):
     A is rounded to single precision in place (_SingleBSR), after the
     Galerkin product that made the next level from it.
     Only the finest level is rounded (1M-triangle leaf: A_0 4.2 GB in
-    double, 2.1 in single): a W-cycle visits it once, and the preconditioner
+    double, 2.1 in single): every cycle visits it once, and the preconditioner
     stays symmetric positive definite whatever its rounding (the symmetric
     sweeps' M + M^T - A is the block diagonal, the coarse correction a
     Galerkin product of the double A).  The coarser levels, visited twice
-    per cycle, must hold the operator their own coarse levels were made
+    per W-cycle (below the second level in every cycle: CYCLES), must hold the operator their own coarse levels were made
     from: rounding moves the lowest eigenvalues (a free plate's rigid
     modes: 1e-5 instead of 1e-14 of |A|), which the coarsest level's
     regularized factor then amplifies (the W-cycle indefinite; also when
