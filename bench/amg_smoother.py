@@ -25,7 +25,11 @@ level's smoother replaced, the rest of the hierarchy unchanged:
   neighbouring triangles: about 13 nodes);
 * ``strong``: on each node with its strongly coupled nodes (the strength
   graph of the aggregation, symmetric strength with the product's theta:
-  a purely algebraic patch).
+  a purely algebraic patch);
+* ``rim``: the product's block Gauss-Seidel sweeps and, after the
+  pre-sweeps and before the post-sweeps, an exact solve (SuperLU) on the
+  band of nodes within 3 h of the disc's rim, where the worst error of the
+  free body lies: does the rim hold the cycle back?
 
 The coarse levels (``--hierarchies``): ``sa``, the product's smoothed
 aggregation (18 near-null vectors, three levels); ``nested``, the product's
@@ -44,10 +48,11 @@ setup_s (hierarchy and smoother), cg_s, smoother_gb (the dense patch
 inverses, in double precision), levels, and the error the cycle reduces
 least (worst_mode: mode_rate, mode_in_plane, mode_outer, mode_oscillation,
 mode_rayleigh, mode_strain_gradient, mode_diag_strain_gradient; rows from before
-2026-12-07 evening have none, the last two are since late evening), supports.  Writes
+2026-12-07 evening have none, the last two are since late evening), supports,
+band_nodes (``rim``).  Writes
 bench/results/amg_smoother.json.
 Run:  python bench/amg_smoother.py [--rings 45 91] [--ratios 3.6 7.3]
-      [--smoothers block-gs aggregates pairs ring row strong] [--hierarchies sa nested]
+      [--smoothers block-gs aggregates pairs ring row strong rim] [--hierarchies sa nested]
 """
 
 import time
@@ -55,7 +60,8 @@ import time
 import numba as nb
 import numpy as np
 
-SMOOTHERS = ("block-gs", "aggregates", "pairs", "ring", "row", "strong")
+SMOOTHERS = ("block-gs", "aggregates", "pairs", "ring", "row", "strong", "rim")
+RIM_BAND = 3.0          # the rim smoother's band: nodes within RIM_BAND h of the rim
 HIERARCHIES = ("sa", "nested")
 SUPPORTS = ("clamp", "rigid")
 
@@ -146,10 +152,10 @@ def patches(kind, A, triangles, theta):
     return ptr, np.concatenate(groups).astype(np.int64)
 
 
-def install(kind, triangles, record):
+def install(kind, shell, record):
     """Replace the finest level's smoother of the hierarchies built from now
-    on (linalg._smooth) by the patch smoother ``kind``; ``record`` gets its
-    set-up time and memory."""
+    on (linalg._smooth) by the smoother ``kind`` (patches of the mesh of
+    ``shell``, or its rim band); ``record`` gets its set-up time and memory."""
     from shellritz import linalg
     product = linalg._smooth
 
@@ -157,16 +163,50 @@ def install(kind, triangles, record):
         product(level, A, single)
         if not single:                     # coarser levels: the product's
             return
-        data = np.asarray(A.data, dtype=np.float64)
         t = time.perf_counter()
-        ptr, nodes = patches(kind, A, triangles, linalg.AMG_STRENGTH_THETA)
-        inv_ptr, inv = patch_inverses(A.indptr, A.indices, data, ptr, nodes)
-        record.update(smoother_setup_s=time.perf_counter() - t, smoother_gb=inv.nbytes / 1e9)
+        if kind == "rim":
+            smoother = rim_band_smoother(level, A, shell, record)
+        else:
+            data = np.asarray(A.data, dtype=np.float64)
+            ptr, nodes = patches(kind, A, shell.mesh.triangles, linalg.AMG_STRENGTH_THETA)
+            inv_ptr, inv = patch_inverses(A.indptr, A.indices, data, ptr, nodes)
+            record.update(smoother_gb=inv.nbytes / 1e9)
 
-        def smoother(_, x, b):
-            schwarz_sweep(A.indptr, A.indices, data, ptr, nodes, inv_ptr, inv, x, b)
-        level.presmoother = level.postsmoother = smoother
+            def smoother(_, x, b):
+                schwarz_sweep(A.indptr, A.indices, data, ptr, nodes, inv_ptr, inv, x, b)
+            smoother = (smoother, smoother)
+        record.update(smoother_setup_s=time.perf_counter() - t)
+        level.presmoother, level.postsmoother = smoother
     linalg._smooth = smooth
+
+
+def rim_band_smoother(level, A, shell, record):
+    """(pre, post) of the ``rim`` smoother: the level's block Gauss-Seidel
+    sweeps (the product's, already on ``level``) and an exact solve of the
+    residual equation on the DOFs of the nodes within RIM_BAND h of the
+    rim, x_band += A_band^-1 (b - A x)_band (SuperLU of the band's rows and
+    columns in double precision)."""
+    from scipy.sparse.linalg import splu
+    radius = np.linalg.norm(shell.X[:, :2], axis=1)
+    band = np.flatnonzero(radius > radius.max() - RIM_BAND * shell.h)
+    m = A.blocksize[0]
+    dofs = (band[:, None] * m + np.arange(m)).ravel()
+    rows = A.tocsr().astype(np.float64)[dofs]
+    lu = splu(rows[:, dofs].tocsc())
+    record.update(smoother_gb=(lu.L.nnz + lu.U.nnz) * 12 / 1e9, band_nodes=len(band))
+    gs_pre, gs_post = level.presmoother, level.postsmoother
+
+    def band_solve(x, b):
+        x[dofs] += lu.solve(b[dofs] - rows @ x).astype(x.dtype)
+
+    def pre(lv, x, b):
+        gs_pre(lv, x, b)
+        band_solve(x, b)
+
+    def post(lv, x, b):
+        band_solve(x, b)
+        gs_post(lv, x, b)
+    return pre, post
 
 
 def worst_mode(shell, K, amg, cycles=30):
@@ -231,7 +271,7 @@ rings, ratio, kind, hierarchy, supports = (int(sys.argv[1]), float(sys.argv[2]),
 shell, K, prolongators = leaf_reference(rings, ratio, nested=hierarchy == "nested", supports=supports)
 record = dict(smoother_setup_s=0.0, smoother_gb=0.0)
 if kind != "block-gs":
-    install(kind, shell.mesh.triangles, record)
+    install(kind, shell, record)
 linalg._available_memory = lambda: 1e12      # the full 18-vector hierarchy in every case
 m = amg_cg_iterations(K, shell.block_layout(), options=dict(cycle="W"), prolongators=prolongators,
                       inspect=lambda amg: worst_mode(shell, K, amg))

@@ -104,6 +104,7 @@ LEAF_THICKNESS = 0.02
 # the membrane metric of the leaf (--membrane): "dkt", as issue 10's figures were
 # measured (the scene file's is regge since 2026-12-07: scaling_regge.json)
 MEMBRANE = "dkt"
+LOG_TAG = ""     # the logs of runs written elsewhere than scaling{_regge}.json: their own names
 
 CHILD = r"""
 import json, resource, sys, time
@@ -243,7 +244,7 @@ def keep_log(rings, solver, thickness, path, text):
     h = "" if thickness == LEAF_THICKNESS else f"_h{thickness:g}"
     h += "".join(f"_from{v:g}" for v in path)
     h += "" if MEMBRANE == "dkt" else f"_{MEMBRANE}"
-    log = RESULTS / "logs" / f"scaling_{rings}_{solver}{h}.log"
+    log = RESULTS / "logs" / f"scaling_{rings}_{solver}{h}{LOG_TAG}.log"
     log.parent.mkdir(exist_ok=True)
     log.write_text(text)
 
@@ -348,16 +349,21 @@ def main():
                          "(Shell.solve(thickness_path=...)), e.g. 0.02,0.01")
     ap.add_argument("--membrane", choices=("dkt", "regge"), default="dkt",
                     help="the leaf's membrane metric (regge: written to scaling_regge.json unless --out)")
-    ap.add_argument("--out", default=None)
+    ap.add_argument("--out", default=None,
+                    help="the results file (default bench/results/scaling.json, scaling_regge.json with "
+                         "--membrane regge); another file's logs carry its name, e.g. --out "
+                         "bench/results/scaling_crossover.json: logs/scaling_129_amg-nested_crossover.log")
     ap.add_argument("--redo", action="store_true",
                     help="rerun the sizes and methods the file already has (else they are skipped)")
     args = ap.parse_args()
-    global MEMBRANE
+    global MEMBRANE, LOG_TAG
     MEMBRANE = args.membrane
     suffix = "" if MEMBRANE == "dkt" else f"_{MEMBRANE}"
     rings = [8, 16] if args.quick else args.rings
     out = Path(args.out or RESULTS / f"scaling{suffix}.json") if not args.quick else \
         RESULTS / f"scaling_quick{suffix}.json"
+    tag = out.stem.removeprefix("scaling").removesuffix(suffix)
+    LOG_TAG = tag if not tag or tag.startswith("_") else f"_{tag}"
     rows = json.loads(out.read_text())["rows"] if out.exists() and not args.quick else []
     h = args.thickness
     path = tuple(float(v) for v in args.thickness_path.split(",") if v)
