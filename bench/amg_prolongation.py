@@ -44,9 +44,7 @@ Rows: rings, n_triangles, h_over_l, prolongation, supports, cg_its, reason,
 setup_s (the hierarchy, prolongation included), prolongation_s (the
 finest prolongator's smoothing alone, fit_s of it the fit of B_c), cg_s,
 complexity (values of all levels' operators over the finest one's:
-memory), constraint_fit, emin_gb.  Rows before 2026-12-08, late, fitted
-B_c with scipy's lsqr (most of their ``emin`` prolongation_s) and kept B on
-the fixed DOFs (constraint_fit 0.3-1 %).  Writes
+memory), constraint_fit, emin_gb.  Writes
 bench/results/amg_prolongation.json.
 Run:  python bench/amg_prolongation.py [--rings 45 91 129] [--ratios 3.6 7.3 14.6]
       [--prolongations jacobi jacobi2 emin emin-native] [--supports rigid clamp]
@@ -66,8 +64,9 @@ def coarse_near_null(T, B, steps=FIT_STEPS):
     """B_c with T B_c = B as nearly as it goes (the least-squares fit, column
     by column): CG on T^T T B_c = T^T B preconditioned by the nodal
     diagonal blocks of T^T T, all columns at once.  On the leaf (rows of
-    the supports' fixed DOFs left out) it reaches 1e-12 in 20 steps (scipy's
-    lsqr to 1e-14: 40 times as long)."""
+    the supports' fixed DOFs left out) it reaches 2e-11 of B in 20 steps
+    (constraint_fit; scipy's lsqr, column by column, took about 40 times as
+    long)."""
     from pyamg.util.utils import get_block_diag
     mc = T.blocksize[1]
     TT = (T.T @ T).tobsr(blocksize=(mc, mc))

@@ -827,8 +827,8 @@ def _smooth(level, A, single):
     stays symmetric positive definite whatever its rounding (the symmetric
     sweeps' M + M^T - A is the block diagonal, the coarse correction a
     Galerkin product of the double A).  The coarser levels, visited twice
-    per W-cycle (below the second level in every cycle: CYCLES), must hold the operator their own coarse levels were made
-    from: rounding moves the lowest eigenvalues (a free plate's rigid
+    per W-cycle (below the second level in every cycle: CYCLES), must hold
+    the operator their own coarse levels were made from: rounding moves the lowest eigenvalues (a free plate's rigid
     modes: 1e-5 instead of 1e-14 of |A|), which the coarsest level's
     regularized factor then amplifies (the W-cycle indefinite; also when
     the coarse operators were made from the rounded ones: 199k leaf)."""
